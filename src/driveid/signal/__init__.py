@@ -1,0 +1,1 @@
+"""Record conditioning and features: timeline repair, peaks, crossings, envelopes."""

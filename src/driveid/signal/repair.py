@@ -1,0 +1,170 @@
+"""Timeline repair and corrupted-burst detection (thesis App. B.3.1).
+
+The thesis's acquisition PC produced two kinds of glitch: a *single* wrong timestamp every
+20-30 files, which linear interpolation repairs, and 10-100 ms bursts of corrupted data
+every ~100 files, which cannot be repaired: the run must be cropped or repeated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["TimelineCheck", "check_timeline", "find_corrupted_bursts"]
+
+
+@dataclass(frozen=True)
+class TimelineCheck:
+    """Outcome of :func:`check_timeline`.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        The time vector [s], with single-sample glitches repaired.
+    repaired : tuple of int
+        Indices whose timestamp was replaced by linear interpolation.
+    problem : str or None
+        Description of a defect that cannot be repaired, ``None`` when the timeline is usable.
+    """
+
+    t: np.ndarray
+    repaired: tuple[int, ...]
+    problem: str | None
+
+
+def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> TimelineCheck:
+    """Check that a time vector is increasing and uniform; repair isolated wrong timestamps.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times [s], n >= 3.
+    max_jitter : float or None
+        Largest accepted relative deviation of a sampling interval from the median interval
+        [-]. ``None`` accepts any increasing, non-uniform timeline.
+
+    Returns
+    -------
+    TimelineCheck
+        Repaired timeline, the repaired indices and the unrepairable problem, if any.
+
+    Notes
+    -----
+    A timestamp ``t[i]`` is a single-sample glitch when the intervals on both sides of it are
+    off but ``t[i+1] - t[i-1]`` is two nominal intervals (at the ends: one bad interval). Such a
+    sample is given ``(t[i-1] + t[i+1]) / 2``; the data value is kept (App. B.3.1).
+
+    Examples
+    --------
+    >>> check = check_timeline(np.array([0.0, 0.1, 0.5, 0.3, 0.4]))
+    >>> check.repaired, check.t[2]
+    ((2,), 0.2)
+    """
+    t = np.array(t, dtype=float)
+    dt = np.diff(t)
+    nominal = float(np.median(dt))
+    if not nominal > 0:
+        return TimelineCheck(t, (), f"median sampling interval is {nominal!r} s, not positive")
+    # a non-uniform timeline (max_jitter=None) has no nominal interval to repair against
+    tol = np.inf if max_jitter is None else max_jitter
+    bad = np.abs(dt - nominal) > tol * nominal
+    repaired: list[int] = []
+    for i in np.flatnonzero(bad).tolist():
+        # interval i joins samples i and i+1: the culprit is the sample both bad intervals share
+        for k in (i, i + 1):
+            if k in repaired:
+                break
+            if 0 < k < len(t) - 1 and bad[k - 1] and bad[k]:
+                span = t[k + 1] - t[k - 1]
+                if abs(span - 2 * nominal) <= 2 * tol * nominal:
+                    repaired.append(k)
+                    break
+            elif k == 0 and bad[0] and (len(bad) < 2 or not bad[1]):
+                repaired.append(0)
+                break
+            elif k == len(t) - 1 and bad[-1] and (len(bad) < 2 or not bad[-2]):
+                repaired.append(k)
+                break
+    for k in repaired:
+        if k == 0:
+            t[0] = t[1] - nominal
+        elif k == len(t) - 1:
+            t[k] = t[k - 1] + nominal
+        else:
+            t[k] = 0.5 * (t[k - 1] + t[k + 1])
+    dt = np.diff(t)
+    problem = None
+    nonpos = np.flatnonzero(dt <= 0)
+    if nonpos.size:
+        i = int(nonpos[0])
+        kind = "duplicated" if dt[i] == 0 else "decreasing"
+        problem = (
+            f"time is {kind} at samples {i} and {i + 1} (t = {t[i]!r} s, {t[i + 1]!r} s) and "
+            f"{nonpos.size} interval(s) in all are not positive; sort the samples by time and "
+            "drop duplicated timestamps"
+        )
+    elif max_jitter is not None:
+        jitter = np.abs(dt - nominal) / nominal
+        worst = int(np.argmax(jitter))
+        if jitter[worst] > max_jitter:
+            problem = (
+                f"sampling is not uniform: interval {worst} is {dt[worst]!r} s against a median "
+                f"of {nominal!r} s ({100 * jitter[worst]:.3g} % off, max_jitter={max_jitter}); "
+                "resample the record to a uniform rate, or pass max_jitter=None to accept "
+                "non-uniform sampling"
+            )
+    return TimelineCheck(t, tuple(sorted(repaired)), problem)
+
+
+def find_corrupted_bursts(x: np.ndarray, *, factor: float = 10.0) -> list[tuple[int, int]]:
+    """Find runs of samples that jump further than the signal can physically move.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        A measured signal, e.g. position [m or rad].
+    factor : float
+        A step counts as a jump when it exceeds ``factor`` times the 99th percentile of the
+        non-zero step sizes [-].
+
+    Returns
+    -------
+    list of (int, int)
+        Half-open index ranges ``[i0, i1)`` of corrupted samples.
+
+    Notes
+    -----
+    A corrupted burst (App. B.3.1: 10-100 ms of garbage) enters and leaves with jumps of the
+    order of the signal's range, while a physical position changes by at most ``v_max dt``
+    per sample. Jumps closer together than 200 samples are merged into one burst.
+
+    Examples
+    --------
+    >>> x = np.sin(np.linspace(0, 6, 1000)); x[500:520] = 5.0
+    >>> find_corrupted_bursts(x)
+    [(500, 520)]
+    """
+    x = np.asarray(x, dtype=float)
+    step = np.abs(np.diff(x))
+    if step.size < 10:
+        return []
+    moving = step[step > 0]
+    if moving.size < 10:
+        return []
+    # quantile of the moving steps: a record that rests most of the time must not make every
+    # motion look like a jump
+    threshold = factor * float(np.quantile(moving, 0.99))
+    jumps = np.flatnonzero(step > threshold)
+    if jumps.size == 0:
+        return []
+    bursts: list[tuple[int, int]] = []
+    start = prev = int(jumps[0])
+    for j in jumps[1:]:
+        j = int(j)
+        if j - prev > 200:
+            bursts.append((start + 1, prev + 1))
+            start = j
+        prev = j
+    bursts.append((start + 1, prev + 1))
+    return [(i0, max(i1, i0 + 1)) for i0, i1 in bursts]
