@@ -371,8 +371,9 @@ def estimate_log_decrement(
     -----
     Unknowns: ω0, ζ⁺, ζ⁻, θk_mean, θk_delta, and per record its first peak value and time.
     Residuals: every peak value against the exact recursion (module docstring) and every
-    valid peak time against the accumulated half periods ``π/(ω0 sqrt(1-ζ_s²))``. Values and
-    times are weighted by their own residual scatter (re-estimated three times), and the
+    valid peak time against the accumulated half periods ``π/(ω0 sqrt(1-ζ_s²))``. Each is
+    weighted by the standard error of its local peak fit (a small peak's time is less
+    certain), each group scaled by its own residual scatter (re-estimated three times), and the
     covariance is ``(JᵀJ)⁻¹`` of the weighted problem, so standard errors reflect the noise
     actually present.
 
@@ -422,13 +423,20 @@ def estimate_log_decrement(
         res_x, res_t = [], []
         for k, (pk, d) in enumerate(zip(peaks, dirs)):
             x0, t0 = p[5 + 2 * k], p[6 + 2 * k]
-            res_x.append(pk.x - peak_recursion(x0, d, zeta_plus=zp, zeta_minus=zm,
-                                               theta_k_mean=tkm, theta_k_delta=tkd))
+            res_x.append((pk.x - peak_recursion(x0, d, zeta_plus=zp, zeta_minus=zm,
+                                                theta_k_mean=tkm, theta_k_delta=tkd))
+                         / w_x[k])
             half = np.where(d[1:] > 0, 1.0 / np.sqrt(1 - zp * zp), 1.0 / np.sqrt(1 - zm * zm))
             t_pred = t0 + np.concatenate([[0.0], np.cumsum(half)]) * (np.pi / omega0)
-            res_t.append((pk.t - t_pred)[pk.time_valid])
+            res_t.append(((pk.t - t_pred) / w_t[k])[pk.time_valid])
         return np.concatenate(res_x), np.concatenate(res_t)
 
+    # relative weights of every peak value and time: the standard errors of the local peak
+    # fits, normalised so that the overall scale of each group is estimated below
+    w_x = [pk.x_se / np.median(pk.x_se) if pk.x_se is not None else np.ones(len(pk))
+           for pk in peaks]
+    w_t = [pk.t_se / np.median(pk.t_se[pk.time_valid]) if pk.t_se is not None
+           else np.ones(len(pk)) for pk in peaks]
     n_x = sum(len(pk) for pk in peaks)
     n_t = sum(int(pk.time_valid.sum()) for pk in peaks)
     n_par = len(guess)

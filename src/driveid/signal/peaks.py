@@ -39,6 +39,9 @@ class Peaks:
         (a stuck end, or a release from a held position after the record started).
     x_std : float
         Standard deviation of the position noise around the peaks [m or rad] (0 if none).
+    x_se, t_se : ndarray, shape (n,)
+        Standard errors of each refined peak value [m or rad] and time [s], from the
+        residuals of its local fit (relative weights for a global fit).
     """
 
     t: np.ndarray
@@ -47,6 +50,8 @@ class Peaks:
     stuck: np.ndarray
     time_valid: np.ndarray
     x_std: float
+    x_se: np.ndarray | None = None
+    t_se: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -100,8 +105,9 @@ def find_oscillation_peaks(
     period : float, optional
         Approximate oscillation period [s]; estimated from the spectrum if omitted.
     min_prominence : float, optional
-        Smallest peak-to-valley swing accepted [m or rad]; default 10 noise standard
-        deviations plus 4 encoder quanta, so peaks lost in noise are not used.
+        Smallest peak-to-valley swing accepted [m or rad]; default 40 noise standard
+        deviations plus 4 encoder quanta: weaker peaks are biased inward by the noise
+        (measured in tests/identify/test_logdec.py), so they are not used.
     window : float
         Half-width of the refinement window as a fraction of the period [-]; 0.08 gives
         ``ω·w = 0.5 rad``.
@@ -140,7 +146,7 @@ def find_oscillation_peaks(
     fs = 1.0 / record.dt
     noise, quantum = _noise_level(x)
     if min_prominence is None:
-        min_prominence = 10 * noise + 4 * quantum + 1e-9 * spread
+        min_prominence = 40 * noise + 4 * quantum + 1e-9 * spread
     distance = max(1, int(0.3 * period * fs))
     hi, _ = find_peaks(x, distance=distance, prominence=min_prominence)
     lo, _ = find_peaks(-x, distance=distance, prominence=min_prominence)
@@ -150,12 +156,20 @@ def find_oscillation_peaks(
     idx, kind = idx[order], kind[order]
     idx, kind = _alternate(x, idx, kind)
     # the initial displacement (released at rest) is the zeroth peak when it is an extremum
-    if idx.size and idx[0] > 0:
+    near_start = max(2, int(0.05 * period * fs))
+    if idx.size and 0 < idx[0] <= near_start:
+        idx[0] = 0  # a noisy flat top at the start: the release itself, at t[0]
+    elif idx.size and idx[0] > 0:
         first_kind = -kind[0]
         head = x[: idx[0]]
         j = int(np.argmax(head) if first_kind > 0 else np.argmin(head))
-        steps = np.abs(np.diff(x))
-        at_rest = steps[min(j, steps.size - 1)] <= 0.05 * steps.max() + 2 * quantum + 3 * noise
+        if j <= near_start:
+            j = 0  # noise decides which early sample is largest: the release is t[0]
+        # at rest there: over m samples it moves far less than at full speed
+        m = max(3, near_start // 2)
+        max_step = float(np.max(np.abs(np.diff(x))))
+        k_end = min(j + m, x.size - 1)
+        at_rest = abs(x[k_end] - x[j]) <= 0.25 * m * max_step + 3 * noise + 2 * quantum
         if abs(x[j] - x[idx[0]]) >= min_prominence and at_rest and (j == 0 or _is_release(x, j)):
             idx = np.concatenate([[j], idx])
             kind = np.concatenate([[first_kind], kind])
@@ -167,14 +181,21 @@ def find_oscillation_peaks(
     half_w = max(1, int(round(window * period * fs)))
     t_pk = np.empty(idx.size)
     x_pk = np.empty(idx.size)
+    t_se = np.empty(idx.size)
+    x_se = np.empty(idx.size)
     for k, i in enumerate(idx):
-        t_pk[k], x_pk[k] = _refine(record.t, x, int(i), half_w, int(kind[k]))
+        t_pk[k], x_pk[k], t_se[k], x_se[k] = _refine(record.t, x, int(i), half_w)
     stuck = np.zeros(idx.size, bool)
     time_valid = np.ones(idx.size, bool)
     if released_late:
         # released from a held position: the held value is exact, the release instant is not
         t_pk[0], x_pk[0] = record.t[idx[0]], float(np.median(x[: idx[0] + 1]))
+        x_se[0] = (noise + quantum) / np.sqrt(idx[0] + 1)
         time_valid[0] = False
+    elif idx.size and idx[0] == 0:
+        # released at the first sample: one-sided fit with zero slope at t[0]
+        t_pk[0], x_pk[0], x_se[0] = record.t[0], *_release_value(record.t, x, half_w)
+        t_se[0] = float(np.median(t_se[1:])) if idx.size > 1 else record.dt
     # a stuck end: the last motion runs into a plateau longer than half a period
     last = idx[-1] if idx.size else 0
     tail = x[last:]
@@ -188,14 +209,20 @@ def find_oscillation_peaks(
             x_pk = np.append(x_pk, value)
             stuck = np.append(stuck, True)
             time_valid = np.append(time_valid, False)
+            x_se = np.append(x_se, (noise + quantum) / np.sqrt(x.size - j))
+            t_se = np.append(t_se, np.inf)
     if idx.size < 2:
         raise IdentificationError(
             f"found {idx.size} oscillation peak(s) above the noise "
             f"(prominence >= {min_prominence:.3g}); the record does not oscillate. Excite "
             "a larger motion, reduce damping (e.g. negative D feedback) or record longer"
         )
+    # clean records give round-off standard errors: floor them at a relative 1e-12
+    x_se = np.maximum(x_se, 1e-12 * spread)
+    t_se = np.maximum(t_se, 1e-9 * record.dt)
     return Peaks(
-        t=t_pk, x=x_pk, index=idx.astype(int), stuck=stuck, time_valid=time_valid, x_std=noise
+        t=t_pk, x=x_pk, index=idx.astype(int), stuck=stuck, time_valid=time_valid, x_std=noise,
+        x_se=x_se, t_se=t_se,
     )
 
 
@@ -235,29 +262,31 @@ def _is_release(x: np.ndarray, j: int) -> bool:
     return bool(np.ptp(before) <= 0.05 * abs(x[j] - np.median(x))) if before.size else True
 
 
-def _refine(t, x, i, half_w, kind):
-    """Sub-sample peak (time, value) from a two-sided fit with a shared velocity zero.
+def _refine(t, x, i, half_w):
+    """Sub-sample peak (time, value, s.e. of time, s.e. of value), two-sided fit.
 
     Coulomb friction switches sign at the peak, so the acceleration jumps there: a single
     polynomial through the peak is biased. Each side gets its own quartic,
     ``x = x_p + Σ_{k=2..4} a_{k±} (t - t_p)^k``, joined with zero slope at ``t_p``; ``t_p``
-    minimises the residual (the other coefficients are linear least squares).
+    minimises the residual (the other coefficients are linear least squares). The standard
+    error of ``x_p`` comes from the linear fit, that of ``t_p`` from the curvature of the
+    residual sum of squares, ``var(t_p) = 2 s² / RSS''(t_p)``.
     """
     lo = max(0, i - half_w)
     hi = min(x.size, i + half_w + 1)
+    dt = t[min(i + 1, t.size - 1)] - t[max(i - 1, 0)]
     if i - lo < 3 or hi - i - 1 < 3:
         if 0 < i < x.size - 1:
             y0, y1, y2 = x[i - 1], x[i], x[i + 1]
             denom = y0 - 2 * y1 + y2
             shift = 0.5 * (y0 - y2) / denom if denom != 0 else 0.0
             shift = float(np.clip(shift, -1, 1))
-            dt = t[i + 1] - t[i]
-            return t[i] + shift * dt, y1 - 0.25 * (y0 - y2) * shift
-        return t[i], x[i]
+            step = t[i + 1] - t[i]
+            return t[i] + shift * step, y1 - 0.25 * (y0 - y2) * shift, step, abs(denom)
+        return t[i], x[i], dt, 0.0
     tt = t[lo:hi] - t[i]
     xx = x[lo:hi]
     scale = max(abs(tt[0]), abs(tt[-1]))
-    dt = t[i + 1] - t[i]
 
     def fit(tp):
         s = (tt - tp) / scale
@@ -269,13 +298,35 @@ def _refine(t, x, i, half_w, kind):
         )
         coef, *_ = np.linalg.lstsq(cols, xx, rcond=None)
         resid = xx - cols @ coef
-        return float(resid @ resid), coef[0]
+        return float(resid @ resid), coef[0], cols
 
     res = minimize_scalar(
-        lambda tp: fit(tp)[0], bounds=(-1.5 * dt, 1.5 * dt), method="bounded",
+        # the largest noisy sample may lie many samples from the true peak of a flat top
+        lambda tp: fit(tp)[0], bounds=(-0.5 * scale, 0.5 * scale), method="bounded",
         options={"xatol": 1e-9 * dt},
     )
-    return t[i] + float(res.x), float(fit(res.x)[1])
+    tp = float(res.x)
+    rss, value, cols = fit(tp)
+    dof = max(xx.size - cols.shape[1] - 1, 1)
+    s2 = rss / dof
+    cov00 = float(np.linalg.pinv(cols.T @ cols)[0, 0])
+    h = 0.05 * dt
+    curv = (fit(tp + h)[0] - 2 * rss + fit(tp - h)[0]) / (h * h)
+    t_se = float(np.sqrt(2 * s2 / curv)) if curv > 0 else dt
+    return t[i] + tp, float(value), t_se, float(np.sqrt(s2 * cov00))
+
+
+def _release_value(t, x, half_w):
+    """Position at t[0] (and its s.e.) of a motion released from rest there."""
+    hi = min(x.size, half_w + 1)
+    if hi < 6:
+        return float(x[0]), 0.0
+    s = (t[:hi] - t[0]) / (t[hi - 1] - t[0])
+    cols = np.column_stack([np.ones_like(s), s**2, s**3, s**4])
+    coef, *_ = np.linalg.lstsq(cols, x[:hi], rcond=None)
+    resid = x[:hi] - cols @ coef
+    s2 = float(resid @ resid) / (hi - 4)
+    return float(coef[0]), float(np.sqrt(s2 * np.linalg.pinv(cols.T @ cols)[0, 0]))
 
 
 def _plateau_start(tail: np.ndarray, tol: float, min_len: int) -> int | None:

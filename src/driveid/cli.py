@@ -1,0 +1,59 @@
+"""The ``driveid`` command line: a thin layer over the public API.
+
+Every subcommand calls one public function. Errors the user can fix (bad input, missing
+files, refused overwrites) are printed as ``error: ...`` with exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from driveid import __version__
+from driveid.commands.demo import demo_command
+from driveid.commands.logdec import free_decay_command, logdec_command
+from driveid.errors import DriveIdError
+
+__all__ = ["main", "cli"]
+
+
+class _Group(click.Group):
+    """A click group that turns our errors into one clear line and exit status 2."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except (DriveIdError, FileNotFoundError, PermissionError, IsADirectoryError) as exc:
+            click.echo(f"error: {exc}", err=True)
+            ctx.exit(2)
+
+
+@click.group(cls=_Group)
+@click.version_option(__version__, prog_name="driveid")
+def cli() -> None:
+    """driveid: model and identify friction, backlash and compliance in machine drives."""
+
+
+@cli.group(cls=_Group)
+def simulate() -> None:
+    """Simulate systems and write record files."""
+
+
+@cli.group(cls=_Group)
+def identify() -> None:
+    """Identify parameters from record files."""
+
+
+simulate.add_command(free_decay_command)
+identify.add_command(logdec_command)
+cli.add_command(demo_command)
+
+
+def main() -> None:
+    """Entry point of the ``driveid`` script."""
+    cli(prog_name="driveid")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Click commands, one module per subcommand family; :mod:`driveid.cli` assembles them."""

@@ -1,0 +1,129 @@
+"""Figures of records and estimates (matplotlib); every axis carries its unit."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["plot_estimate", "plot_log_decrement", "save_figure"]
+
+
+def _pyplot():
+    import matplotlib
+
+    if matplotlib.get_backend().lower() not in ("agg", "pdf", "svg") and not _has_display():
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _has_display() -> bool:
+    import os
+
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
+    """Draw an estimate over its record; dispatches on ``estimate.method``.
+
+    Parameters
+    ----------
+    estimate : Estimate
+        Result of an identification.
+    record : Record or sequence of Record, optional
+        The data the estimate came from.
+    ax : matplotlib Axes, optional
+        Where to draw; a new figure when omitted.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure drawn on.
+    """
+    if estimate.method.startswith("logdec"):
+        return plot_log_decrement(estimate, record=record, ax=ax)
+    raise NotImplementedError(f"no figure for method {estimate.method!r} yet")
+
+
+def plot_log_decrement(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
+    """Record(s) with their peaks, the fitted peak sequence and its envelopes.
+
+    Parameters
+    ----------
+    estimate : Estimate
+        A ``logdec-*`` estimate.
+    record : Record or sequence of Record, optional
+        The records behind the estimate, drawn as lines.
+    ax : matplotlib Axes, optional
+        Where to draw.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
+    """
+    plt = _pyplot()
+    if ax is None:
+        fig, ax = plt.subplots(figsize=(9, 4.5), constrained_layout=True)
+    else:
+        fig = ax.figure
+    records = [] if record is None else ([record] if hasattr(record, "t") else list(record))
+    peak_t = estimate.data_used["peak_t"]
+    peak_x = estimate.data_used["peak_x"]
+    fits = estimate.data_used.get("peak_fit")
+    if not isinstance(peak_t, list):
+        peak_t, peak_x = [peak_t], [peak_x]
+        fits = None if fits is None else [fits]
+    xunit = records[0].units.get("x", "") if records else ""
+    for k, (tp, xp) in enumerate(zip(peak_t, peak_x)):
+        color = f"C{k}"
+        if k < len(records):
+            rec = records[k]
+            ax.plot(rec.t, rec.x, color=color, lw=0.8, label=f"record {k + 1}")
+        ax.plot(tp, xp, "o", color=color, ms=4, mfc="none",
+                label="measured peaks" if k == 0 else None)
+        if fits is not None:
+            fit = np.asarray(fits[k])
+            upper = fit >= np.median(fit)
+            for mask, name in ((upper, "upper"), (~upper, "lower")):
+                ax.plot(tp[mask], fit[mask], "--", color="k", lw=0.9,
+                        label="fitted envelope" if (k == 0 and name == "upper") else None)
+    p = estimate.params
+    if "theta_k_mean" in p:
+        for s in (1, -1):
+            eq = -(p["theta_k_mean"].value * s + p["theta_k_delta"].value)
+            ax.axhline(eq, color="grey", lw=0.6, ls=":")
+    ax.set_xlabel("time t [s]")
+    ax.set_ylabel(f"position x [{xunit}]" if xunit else "position x")
+    ax.set_title(f"{estimate.method}: ω0 = {p['omega0'].value:.5g} rad/s")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.grid(True, alpha=0.3)
+    return fig
+
+
+def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False) -> Path:
+    """Save a figure as PNG (or the format of the suffix), refusing to overwrite.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or Path
+        Destination file.
+    overwrite : bool
+        Replace an existing file.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    from driveid.io.files import ensure_writable
+
+    path = ensure_writable(path, overwrite=overwrite)
+    fig.savefig(path, dpi=120)
+    _pyplot().close(fig)
+    return path
