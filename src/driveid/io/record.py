@@ -124,16 +124,17 @@ class Record:
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
         meta = dict(self.meta)
+        given = dict(meta.get("units", {}))
         units = dict(DEFAULT_UNITS)
-        units.update(meta.get("units", {}))
+        if given.get("x") == "m":  # translational: defaults follow the position unit
+            units.update({"u": "N", "v": "m/s"})
+        units.update(given)
         meta["units"] = units
         if check.repaired:
             meta["repaired_timestamps"] = list(check.repaired)
         object.__setattr__(self, "meta", MappingProxyType(meta))
-        bursts = []
-        for name in ("x", "u"):
-            if name in arrays:
-                bursts += find_corrupted_bursts(arrays[name])
+        # only position: a force may legitimately step (pulses, Coulomb switching)
+        bursts = find_corrupted_bursts(arrays["x"])
         object.__setattr__(self, "_corrupted", tuple(sorted(set(bursts))))
         if bursts:
             spans = ", ".join(f"{self.t[i0]:.4g}-{self.t[i1 - 1]:.4g} s" for i0, i1 in bursts[:5])

@@ -49,7 +49,7 @@ def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
 
 
 def plot_log_decrement(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
-    """Record(s) with their peaks, the fitted peak sequence and its envelopes.
+    """Draw record(s) with their peaks, the fitted peak sequence and its envelopes.
 
     Parameters
     ----------
@@ -78,7 +78,7 @@ def plot_log_decrement(estimate: Any, *, record: Any = None, ax: Any = None) -> 
         peak_t, peak_x = [peak_t], [peak_x]
         fits = None if fits is None else [fits]
     xunit = records[0].units.get("x", "") if records else ""
-    for k, (tp, xp) in enumerate(zip(peak_t, peak_x)):
+    for k, (tp, xp) in enumerate(zip(peak_t, peak_x, strict=True)):
         color = f"C{k}"
         if k < len(records):
             rec = records[k]

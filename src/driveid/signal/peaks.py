@@ -128,8 +128,8 @@ def find_oscillation_peaks(
     -----
     Each peak is refined over ``±window·period`` by a two-sided quartic with a shared velocity
     zero (Coulomb friction makes the acceleration jump at the peak; see ``_refine``), or a
-    3-point parabola when fewer than 7 samples are available. A final plateau (the body stuck) ends the list with
-    a peak whose value is the plateau's median.
+    3-point parabola when fewer than 7 samples are available. A final plateau (the body
+    stuck) ends the list with a peak whose value is the plateau's median.
     """
     if record.corrupted:
         i0, i1 = record.corrupted[0]
@@ -246,7 +246,7 @@ def _alternate(x, idx, kind):
     """Enforce max/min alternation, keeping the more extreme of two same-kind neighbours."""
     keep_i: list[int] = []
     keep_k: list[int] = []
-    for i, k in zip(idx.tolist(), kind.tolist()):
+    for i, k in zip(idx.tolist(), kind.tolist(), strict=True):
         if keep_k and keep_k[-1] == k:
             if k * x[i] > k * x[keep_i[-1]]:
                 keep_i[-1] = i
@@ -257,7 +257,7 @@ def _alternate(x, idx, kind):
 
 
 def _is_release(x: np.ndarray, j: int) -> bool:
-    """True when the samples before ``j`` rest near x[j] (a release from a held position)."""
+    """Tell whether the samples before ``j`` rest near x[j] (a release from a held position)."""
     before = x[:j]
     return bool(np.ptp(before) <= 0.05 * abs(x[j] - np.median(x))) if before.size else True
 

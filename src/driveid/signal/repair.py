@@ -58,7 +58,7 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
     Examples
     --------
     >>> check = check_timeline(np.array([0.0, 0.1, 0.5, 0.3, 0.4]))
-    >>> check.repaired, check.t[2]
+    >>> check.repaired, float(check.t[2])
     ((2,), 0.2)
     """
     t = np.array(t, dtype=float)
@@ -117,7 +117,7 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
     return TimelineCheck(t, tuple(sorted(repaired)), problem)
 
 
-def find_corrupted_bursts(x: np.ndarray, *, factor: float = 10.0) -> list[tuple[int, int]]:
+def find_corrupted_bursts(x: np.ndarray, *, factor: float = 20.0) -> list[tuple[int, int]]:
     """Find runs of samples that jump further than the signal can physically move.
 
     Parameters
@@ -125,8 +125,8 @@ def find_corrupted_bursts(x: np.ndarray, *, factor: float = 10.0) -> list[tuple[
     x : ndarray, shape (n,)
         A measured signal, e.g. position [m or rad].
     factor : float
-        A step counts as a jump when it exceeds ``factor`` times the 99th percentile of the
-        non-zero step sizes [-].
+        A step counts as a jump when it exceeds ``factor`` times the 90th percentile of the
+        non-zero step sizes [-] (robust while bursts are under 10 % of the record).
 
     Returns
     -------
@@ -154,7 +154,7 @@ def find_corrupted_bursts(x: np.ndarray, *, factor: float = 10.0) -> list[tuple[
         return []
     # quantile of the moving steps: a record that rests most of the time must not make every
     # motion look like a jump
-    threshold = factor * float(np.quantile(moving, 0.99))
+    threshold = factor * float(np.quantile(moving, 0.9))
     jumps = np.flatnonzero(step > threshold)
     if jumps.size == 0:
         return []

@@ -267,7 +267,7 @@ def simulate_free_decay(
     >>> p = OscillatorParams(J=1.0, K=16.0, c_mean=0.3, fk_mean=0.07)
     >>> sim = simulate_free_decay(p, x0=1.0, duration=5.0)
     >>> round(float(sim.reversal_x[1]), 6)  # first peak: exact closed form
-    -0.8002
+    -0.880528
     """
     if not (isinstance(duration, (int, float)) and duration > 0):
         raise ParameterError(f"duration must be positive [s]; got {duration!r}")
