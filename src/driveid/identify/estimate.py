@@ -109,7 +109,9 @@ class Estimate:
         for name, par in self.params.items():
             rows.append((name, f"{par.value:.6g}", f"{par.stderr:.3g}", par.unit))
         widths = [max(len(r[i]) for r in rows) for i in range(4)]
-        lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)) for row in rows]
+        lines = [
+            "  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)) for row in rows
+        ]
         lines.insert(1, "  ".join("-" * w for w in widths))
         return "\n".join(lines)
 

@@ -65,7 +65,10 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
     dt = np.diff(t)
     nominal = float(np.median(dt))
     if not nominal > 0:
-        return TimelineCheck(t, (), f"median sampling interval is {nominal!r} s, not positive")
+        return TimelineCheck(
+            t, (), f"time is not increasing: the median sampling interval is {nominal!r} s; "
+            "sort the samples by time (oldest first) and drop duplicated timestamps"
+        )
     # a non-uniform timeline (max_jitter=None) has no nominal interval to repair against
     tol = np.inf if max_jitter is None else max_jitter
     bad = np.abs(dt - nominal) > tol * nominal

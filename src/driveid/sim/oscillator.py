@@ -314,8 +314,11 @@ def simulate_free_decay(
                 tau = math.inf
         t_end = t_now + tau
         segments.append((t_now, t_end, direction, x_now, v_now))
-        mask = (t >= t_now) & (t < t_end) if math.isfinite(t_end) else (t >= t_now)
-        if mask.any():
+        # samples in [t_now, t_end): index ranges, not masks, keep a segment O(its samples)
+        i0 = int(np.searchsorted(t, t_now, "left"))
+        i1 = int(np.searchsorted(t, t_end, "left")) if math.isfinite(t_end) else t.size
+        mask = slice(i0, i1)
+        if i1 > i0:
             local = t[mask] - t_now
             if K > 0:
                 y, v = _segment_response(local, x_now - x_eq, v_now, sigma, w0sq)
@@ -336,7 +339,7 @@ def simulate_free_decay(
             f"t={duration} s; shorten the duration or add damping/friction"
         )
     if stuck_at is not None:
-        rest = t >= stuck_at
+        rest = slice(int(np.searchsorted(t, stuck_at, "left")), t.size)
         x_out[rest], v_out[rest] = x_now, 0.0
     meta = {
         "source": "driveid.sim.simulate_free_decay",
