@@ -21,10 +21,10 @@ test: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/run_all.py
+	for f in benchmarks/bench_*.py; do $(BIN)/python $$f || exit 1; done
 
 examples: $(STAMP)
-	$(BIN)/python examples/run_examples.py
+	for f in examples/*.py; do MPLBACKEND=Agg $(BIN)/python $$f --out examples-output --force || exit 1; done
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests benchmarks examples
