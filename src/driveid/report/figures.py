@@ -43,9 +43,25 @@ def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
     matplotlib.figure.Figure
         The figure drawn on.
     """
-    if estimate.method.startswith("logdec"):
+    method = estimate.method
+    if method.startswith("logdec"):
         return plot_log_decrement(estimate, record=record, ax=ax)
-    raise NotImplementedError(f"no figure for method {estimate.method!r} yet")
+    if method in ("hilbert-freevib", "hilbert-forcevib"):
+        from driveid.report.instantaneous_figures import plot_hilbert
+
+        return plot_hilbert(estimate, record=record)
+    if method.startswith("wavelet"):
+        from driveid.report.instantaneous_figures import plot_wavelet
+
+        return plot_wavelet(estimate, record=record)
+    if method.startswith("idim"):
+        from driveid.report.friction_figures import plot_idim
+
+        return plot_idim(estimate)
+    raise NotImplementedError(
+        f"no figure for method {method!r}; friction maps are drawn by "
+        "driveid.report.friction_figures.plot_friction_map(result)"
+    )
 
 
 def plot_log_decrement(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
