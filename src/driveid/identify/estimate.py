@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
-import numpy as np
+from driveid._json import to_jsonable
 
 __all__ = ["Parameter", "Estimate"]
 
@@ -95,7 +95,7 @@ class Estimate:
         out: dict[str, Any] = {"method": self.method}
         for name, par in self.params.items():
             out[name] = par.to_dict()
-        out["diagnostics"] = _jsonable(dict(self.diagnostics))
+        out["diagnostics"] = to_jsonable(dict(self.diagnostics))
         out["warnings"] = list(self.warnings)
         return out
 
@@ -125,17 +125,3 @@ class Estimate:
 def _finite_or_none(value: float) -> float | None:
     value = float(value)
     return value if math.isfinite(value) else None
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    if isinstance(value, (np.generic, float)):
-        return _finite_or_none(float(value)) if isinstance(value, (float, np.floating)) else (
-            value.item()
-        )
-    return value

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from driveid._json import to_jsonable
 from driveid.errors import FileFormatError, OverwriteError
 from driveid.io.record import Record
 
@@ -101,7 +102,7 @@ def write_record(record: Record, path: str | Path, *, overwrite: bool = False) -
             f"cannot write {path.name}: unknown suffix {path.suffix!r}; use one of {SUFFIXES}"
         )
     ensure_writable(path, overwrite=overwrite)
-    meta_json = json.dumps(_jsonable(dict(record.meta)))
+    meta_json = json.dumps(to_jsonable(dict(record.meta)))
     columns = record.columns
     if suffix == ".csv":
         header = ",".join(f"{c} [{record.units.get(c, '')}]" for c in columns)
@@ -296,15 +297,3 @@ def _read_mat(path: Path) -> tuple[dict[str, np.ndarray], dict[str, str], dict[s
         meta = json.loads(str(np.asarray(raw["driveid_meta"]).ravel()[0]))
     numeric = {k: v for k, v in data.items() if np.issubdtype(np.asarray(v).dtype, np.number)}
     return numeric, {}, meta
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
