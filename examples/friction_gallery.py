@@ -31,17 +31,19 @@ import numpy as np  # noqa: E402
 
 from driveid.errors import OverwriteError  # noqa: E402
 from driveid.models.friction import (  # noqa: E402
-    ArmstrongRisingParams,
     BoPavelescuParams,
     HessSoomParams,
-    KatoRisingParams,
     LorentzianParams,
-    PreslidingParams,
     bo_pavelescu_friction,
     hess_soom_friction,
     hess_soom_from_lorentzian,
-    lagged_friction,
     lorentzian_friction,
+)
+from driveid.models.friction_memory import (  # noqa: E402
+    ArmstrongRisingParams,
+    KatoRisingParams,
+    PreslidingParams,
+    lagged_friction,
     presliding_friction,
     rising_static_friction_armstrong,
     rising_static_friction_kato,

@@ -16,7 +16,10 @@ from driveid.identify.static_tests import (
     step_metrics,
 )
 from driveid.io.record import Record
-from driveid.models.friction import KatoRisingParams, rising_static_friction_kato
+from driveid.models.friction_memory import (
+    KatoRisingParams,
+    rising_static_friction_kato,
+)
 
 # kinetic friction and peak force chosen so that the mass sticks again before the force
 # changes sign: each ramp then starts from rest

@@ -27,8 +27,10 @@ from driveid.models.dynamic_friction import (
 )
 from driveid.models.friction import (
     BoPavelescuParams,
-    RisingStribeckParams,
     bo_pavelescu_friction,
+)
+from driveid.models.friction_memory import (
+    RisingStribeckParams,
     rising_lorentzian_friction,
 )
 

@@ -22,7 +22,7 @@ from scipy import optimize
 from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
-from driveid.models.friction import (
+from driveid.models.friction_memory import (
     KatoRisingParams,
     presliding_stiffness,
     rising_static_friction_kato,
@@ -177,7 +177,7 @@ def estimate_rising_friction(
 ) -> Estimate:
     """Fit the rise of static friction with dwell time, (2.6), by nonlinear least squares.
 
-    The model is :func:`driveid.models.friction.rising_static_friction_kato`:
+    The model is :func:`driveid.models.friction_memory.rising_static_friction_kato`:
     ``fs(t) = fs_inf + (fk − fs_inf)·exp(−t^κ/γ)``. The thesis's γ is the reciprocal of
     the rate in Kato's original ``exp(−γ' t^κ)`` (hence its "1/γ roughly 0.04–0.29") and
     has the unit s^κ, not s as printed.

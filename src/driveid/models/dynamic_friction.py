@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from driveid.errors import ParameterError
-from driveid.models.friction import lag_signal
+from driveid.models.friction_memory import lag_signal
 
 __all__ = [
     "ArmstrongParams",
@@ -286,7 +286,7 @@ def dahl_state_derivative(f: Any, v: Any, params: DahlParams) -> np.ndarray:
     prints :math:`\gamma_s = k_s\mu_k\,\mathrm{sgn}(u)`; expanding (2.16) with
     :math:`\gamma = 2`, :math:`u^2 = (f - \mu_k\mathrm{sgn}\dot x)^2/\mu_k^2`, so (2.17)
     needs :math:`\gamma_s = k_s\,\mathrm{sgn}(u)/\mu_k^2` (checked in tests). The thesis's
-    time lag Δt can be applied to ``v`` with :func:`driveid.models.friction.lag_signal`.
+    time lag Δt can be applied to ``v`` with :func:`driveid.models.friction_memory.lag_signal`.
 
     Examples
     --------
