@@ -1,0 +1,174 @@
+"""Speed and accuracy of driveid.sim.drive against scipy baselines written as a user would.
+
+W1  free decay with stiction (J=1, K=16, c=0.3±0.1, fk=0.07±0.03, fs=1.5 fk, x0=1, 20 s,
+    1 kHz): ours (exact path and RK4 path) vs solve_ivp(RK45) restarted at velocity-zero events.
+W1x1000  the same with every parameter drawn ±30 %: simulate_free_decay_batch.
+W3  three-body drive (motor, backlash, arm, shaft, tool) under delayed PD, 5 s: ours vs
+    LSODA by the method of steps (one solve_ivp per delay interval, delayed state from the
+    previous interval's dense output).
+
+Accuracy is measured against a much finer run of our own in the same process. Ratios, not
+absolute times, are the result (this machine is shared). Run: python benchmarks/bench_drive.py
+"""
+
+import time
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from driveid.sim.drive import (
+    BacklashLink,
+    BodyParams,
+    DriveParams,
+    PDFeedback,
+    ShaftLink,
+    simulate_drive,
+    simulate_free_decay_batch,
+)
+
+W1 = dict(J=1.0, K=16.0, c_mean=0.3, c_delta=0.1, fk_mean=0.07, fk_delta=0.03, fs_mean=0.105)
+
+
+def best_of(fn, n=5):
+    best = np.inf
+    for _ in range(n):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def w1_solve_ivp(p, t_eval, x0=1.0):
+    """A user's solve_ivp: RK45 per velocity sign, restarted at each v = 0 event."""
+    J, K = p["J"], p["K"]
+    lo, hi = p["fk_delta"] - p["fs_mean"], p["fk_delta"] + p["fs_mean"]
+    x = np.full_like(t_eval, np.nan)
+    t0, y = 0.0, np.array([x0, 0.0])
+    while t0 < t_eval[-1]:
+        f = -K * y[0]
+        if y[1] == 0.0:
+            if lo <= f <= hi:
+                x[t_eval >= t0] = y[0]
+                break
+            s = 1.0 if f > p["fk_delta"] else -1.0
+        else:
+            s = np.sign(y[1])
+        c = p["c_mean"] + p["c_delta"] * s
+        fk = p["fk_mean"] * s + p["fk_delta"]
+
+        def rhs(t, z, c=c, fk=fk):
+            return [z[1], (-K * z[0] - c * z[1] - fk) / J]
+
+        def stop(t, z):
+            return z[1]
+
+        stop.terminal = True
+        stop.direction = -s
+        mask = t_eval >= t0
+        sol = solve_ivp(rhs, (t0, t_eval[-1]), y, t_eval=t_eval[mask], events=stop,
+                        rtol=1e-10, atol=1e-12, first_step=1e-6)
+        x[np.flatnonzero(mask)[: sol.t.size]] = sol.y[0]
+        if sol.status != 1:
+            break
+        t0, y = sol.t_events[0][0], np.array([sol.y_events[0][0][0], 0.0])
+    return x
+
+
+def w3_params():
+    bodies = (BodyParams(J=0.0115, c_mean=1e-3, fk_mean=0.02), BodyParams(J=0.0035),
+              BodyParams(J=0.016, c_mean=2e-3, fk_mean=0.05))
+    links = (BacklashLink(gap_plus=0.01, gap_minus=0.01, k=1e4, c=2.0),
+             ShaftLink(k=50.0, c=0.05))
+    return DriveParams(bodies=bodies, links=links,
+                       feedback=PDFeedback(P=5.0, D=0.3, delay=0.01, reference=1.0))
+
+
+def w3_lsoda(t_eval, rtol=1e-6, atol=1e-9, v_smooth=1e-3):
+    """A user's LSODA by the method of steps; Coulomb friction as tanh(v/v_smooth) (sign(v)
+    makes LSODA crawl: > 10 min), contact max(0, .)."""
+    Jm, Ja, Jt = 0.0115, 0.0035, 0.016
+    P, D, delay, r = 5.0, 0.3, 0.01, 1.0
+
+    def contact(d, dv):
+        fp = max(0.0, 1e4 * (d - 0.01) + 2.0 * dv) if d > 0.01 else 0.0
+        fm = max(0.0, 1e4 * (-0.01 - d) - 2.0 * dv) if d < -0.01 else 0.0
+        return fp - fm
+
+    out = np.full((3, t_eval.size), np.nan)
+    y = np.zeros(6)
+    prev = None
+    n_int = int(np.ceil(t_eval[-1] / delay - 1e-9))
+    for k in range(n_int):
+        t0, t1 = k * delay, min((k + 1) * delay, t_eval[-1])
+
+        def rhs(t, z, prev=prev):
+            if prev is None:
+                xd, vd = 0.0, 0.0
+            else:
+                zd = prev(t - delay)
+                xd, vd = zd[0], zd[3]
+            tau = P * (r - xd) - D * vd
+            xm, xa, xt, vm, va, vt = z
+            fc = contact(xm - xa, vm - va)
+            fs = 50.0 * (xa - xt) + 0.05 * (va - vt)
+            am = (tau - fc - 1e-3 * vm - 0.02 * np.tanh(vm / v_smooth)) / Jm
+            aa = (fc - fs) / Ja
+            at = (fs - 2e-3 * vt - 0.05 * np.tanh(vt / v_smooth)) / Jt
+            return [vm, va, vt, am, aa, at]
+
+        mask = (t_eval >= t0 - 1e-12) & (t_eval <= t1 + 1e-12)
+        sol = solve_ivp(rhs, (t0, t1), y, method="LSODA", dense_output=True, rtol=rtol,
+                        atol=atol)
+        out[:, mask] = sol.sol(t_eval[mask])[:3]
+        y = sol.y[:, -1]
+        prev = sol.sol
+    return out
+
+
+def main():
+    print("== W1 free decay with stiction, 20 s at 1 kHz")
+    drive = DriveParams(bodies=(BodyParams(**W1),))
+    t = np.arange(20001) / 1000.0
+    simulate_drive(drive, duration=20.0, x0=[1.0])  # warm the numba cache
+    simulate_drive(drive, duration=20.0, x0=[1.0], method="rk4")
+    t_exact, exact = best_of(lambda: simulate_drive(drive, duration=20.0, x0=[1.0]))
+    t_rk4, rk4 = best_of(lambda: simulate_drive(drive, duration=20.0, x0=[1.0], method="rk4"))
+    fine = simulate_drive(drive, duration=20.0, x0=[1.0], method="rk4", max_step=1e-5)
+    t_ivp, ivp = best_of(lambda: w1_solve_ivp(W1, t), n=2)
+    ref = exact.x[0]
+    err_fine = np.max(np.abs(fine.x[0] - ref))
+    print(f"  exact path  {t_exact * 1e3:8.3f} ms  (the reference; a 100x finer RK4 run differs"
+          f" by {err_fine:.1e})")
+    print(f"  RK4 path    {t_rk4 * 1e3:8.3f} ms  max|err| {np.max(np.abs(rk4.x[0] - ref)):.1e}")
+    print(f"  solve_ivp   {t_ivp * 1e3:8.3f} ms  max|err| {np.nanmax(np.abs(ivp - ref)):.1e}")
+    print(f"  speed-up vs solve_ivp: exact {t_ivp / t_exact:7.0f}x   RK4 {t_ivp / t_rk4:5.1f}x"
+          "   (target >= 100x)")
+
+    print("== W1 x 1000, every parameter drawn +-30 % (fs/fk ratio drawn, so fs >= fk)")
+    rng = np.random.default_rng(0)
+    n = 1000
+    draw = {k: v * rng.uniform(0.7, 1.3, n) for k, v in W1.items()}
+    draw["fs_mean"] = 1.5 * rng.uniform(0.7, 1.3, n) * draw["fk_mean"]
+    simulate_free_decay_batch(**{k: v[:2] for k, v in draw.items()}, x0=1.0, duration=1.0)
+    t_batch, batch = best_of(lambda: simulate_free_decay_batch(**draw, x0=1.0, duration=20.0), 3)
+    print(f"  batch       {t_batch * 1e3:8.1f} ms for {n} runs  (target < 200 ms on one core);"
+          f" est. solve_ivp x1000: {t_ivp * n:.0f} s -> {t_ivp * n / t_batch:.0f}x")
+
+    print("== W3 three-body drive with delayed PD, 5 s")
+    p = w3_params()
+    simulate_drive(p, duration=5.0)
+    t_w3, w3 = best_of(lambda: simulate_drive(p, duration=5.0))
+    fine = simulate_drive(p, duration=5.0, max_step=2e-6)
+    t5 = np.arange(5001) / 1000.0
+    t_ls, ls = best_of(lambda: w3_lsoda(t5), n=1)
+    err = np.max(np.abs(w3.x - fine.x))
+    err_ls = np.max(np.abs(ls - fine.x))
+    print(f"  ours        {t_w3 * 1e3:8.1f} ms  max|err| {err:.1e} rad  impacts {w3.n_impacts}"
+          f"  mode switches {w3.n_mode_switches}   (target < 100 ms)")
+    print(f"  LSODA/steps {t_ls * 1e3:8.1f} ms  max|err| {err_ls:.1e} rad"
+          " (its model: tanh friction, no stiction)")
+    print(f"  speed-up vs LSODA: {t_ls / t_w3:.1f}x   (target >= 10x)")
+
+
+if __name__ == "__main__":
+    main()
