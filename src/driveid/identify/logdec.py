@@ -419,6 +419,13 @@ def estimate_log_decrement(
         guess += [pk.x[0], pk.t[0]]
     amplitude = max(float(np.max(np.abs(pk.x - np.median(pk.x)))) for pk in peaks)
 
+    # relative weights of every peak value and time: the standard errors of the local peak
+    # fits, normalised so that the overall scale of each group is estimated below
+    w_x = [pk.x_se / np.median(pk.x_se) if pk.x_se is not None else np.ones(len(pk))
+           for pk in peaks]
+    w_t = [pk.t_se / np.median(pk.t_se[pk.time_valid]) if pk.t_se is not None
+           else np.ones(len(pk)) for pk in peaks]
+
     def residual_parts(p):
         omega0, zp, zm, tkm, tkd = p[:5]
         res_x, res_t = [], []
@@ -432,12 +439,6 @@ def estimate_log_decrement(
             res_t.append(((pk.t - t_pred) / w_t[k])[pk.time_valid])
         return np.concatenate(res_x), np.concatenate(res_t)
 
-    # relative weights of every peak value and time: the standard errors of the local peak
-    # fits, normalised so that the overall scale of each group is estimated below
-    w_x = [pk.x_se / np.median(pk.x_se) if pk.x_se is not None else np.ones(len(pk))
-           for pk in peaks]
-    w_t = [pk.t_se / np.median(pk.t_se[pk.time_valid]) if pk.t_se is not None
-           else np.ones(len(pk)) for pk in peaks]
     n_x = sum(len(pk) for pk in peaks)
     n_t = sum(int(pk.time_valid.sum()) for pk in peaks)
     n_par = len(guess)
