@@ -125,3 +125,22 @@ def test_emps_mat_mapping(shared_data):
     )
     assert rec.n == 24841 and rec.fs == pytest.approx(1000.0, rel=1e-4)  # t has float jitter
     assert -160 < rec.u.min() < -140  # force = gtau·vir spans about -152 ... +145 N (SOURCE.md)
+
+
+def test_units_are_converted_to_si_at_reading(tmp_path):
+    t, x = _sine(50)
+    rows = "\n".join(f"{1e3 * a},{np.degrees(b)},{2.0}" for a, b in zip(t, x, strict=True))
+    (tmp_path / "deg.csv").write_text("t [ms],x [deg],u [mN·m]\n" + rows)
+    rec = read_record(tmp_path / "deg.csv")
+    np.testing.assert_allclose(rec.t, t, rtol=1e-12)  # ms -> s
+    np.testing.assert_allclose(rec.x, x, rtol=1e-12, atol=1e-15)  # deg -> rad
+    np.testing.assert_allclose(rec.u, 2e-3)  # mN·m -> N·m
+    assert rec.units["x"] == "rad" and rec.units["u"] == "N·m"
+
+
+def test_unknown_unit_is_an_error(tmp_path):
+    t, x = _sine(50)
+    rows = "\n".join(f"{a},{b}" for a, b in zip(t, x, strict=True))
+    (tmp_path / "furlong.csv").write_text("t [s],x [furlong]\n" + rows)
+    with pytest.raises(FileFormatError, match="'furlong'.*does not convert"):
+        read_record(tmp_path / "furlong.csv")

@@ -11,11 +11,14 @@ CSV layout written by driveid::
 Readers also accept a plain header ``t,x`` or ``t,x,u`` (units then default to
 :data:`driveid.io.record.DEFAULT_UNITS`), units in brackets or parentheses (``t (s)``), and
 the column aliases ``time``, ``position``/``pos``, ``force``/``torque``, ``velocity``/``vel``.
+Units in a header are converted to SI at reading (``t [ms]``, ``x [deg]``, ``v [rpm]``,
+``u [mN·m]`` ...; see :data:`UNIT_CONVERSIONS`); an unknown unit is an error, never ignored.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import re
 from collections.abc import Mapping
 from pathlib import Path
@@ -27,7 +30,7 @@ from driveid._json import to_jsonable
 from driveid.errors import FileFormatError, OverwriteError
 from driveid.io.record import Record
 
-__all__ = ["read_record", "write_record", "ensure_writable", "SUFFIXES"]
+__all__ = ["read_record", "write_record", "ensure_writable", "SUFFIXES", "UNIT_CONVERSIONS"]
 
 #: File suffixes understood by :func:`read_record` and :func:`write_record`.
 SUFFIXES = (".csv", ".npz", ".mat")
@@ -220,9 +223,42 @@ def read_record(
     merged_units = {c: file_units[c] for c in picked if file_units.get(c)}
     merged_units.update(meta.get("units", {}))
     merged_units.update(units or {})
+    for col in list(merged_units):
+        if col in picked:
+            si_unit, factor = _si_unit(col, merged_units[col], path.name)
+            picked[col] = picked[col] * factor
+            merged_units[col] = si_unit
     meta["units"] = merged_units
     meta["source"] = str(path)
     return Record(**picked, meta=meta, max_jitter=max_jitter)
+
+
+_DEG = math.pi / 180.0
+#: Units a reader converts to SI at the edge: column kind -> unit -> (SI unit, factor).
+UNIT_CONVERSIONS: dict[str, dict[str, tuple[str, float]]] = {
+    "t": {"s": ("s", 1.0), "ms": ("s", 1e-3), "us": ("s", 1e-6), "µs": ("s", 1e-6),
+          "min": ("s", 60.0)},
+    "x": {"rad": ("rad", 1.0), "deg": ("rad", _DEG), "°": ("rad", _DEG),
+          "rev": ("rad", 2 * math.pi), "m": ("m", 1.0), "mm": ("m", 1e-3), "um": ("m", 1e-6),
+          "µm": ("m", 1e-6)},
+    "v": {"rad/s": ("rad/s", 1.0), "deg/s": ("rad/s", _DEG), "rpm": ("rad/s", math.pi / 30),
+          "rev/s": ("rad/s", 2 * math.pi), "m/s": ("m/s", 1.0), "mm/s": ("m/s", 1e-3)},
+    "u": {"N": ("N", 1.0), "kN": ("N", 1e3), "N·m": ("N·m", 1.0), "Nm": ("N·m", 1.0),
+          "N*m": ("N·m", 1.0), "N.m": ("N·m", 1.0), "mN·m": ("N·m", 1e-3),
+          "mNm": ("N·m", 1e-3)},
+}
+
+
+def _si_unit(column: str, unit: str, source: str) -> tuple[str, float]:
+    """SI unit and conversion factor of a column's unit, or a FileFormatError naming it."""
+    table = UNIT_CONVERSIONS[column]
+    if unit in table:
+        return table[unit]
+    raise FileFormatError(
+        f"{source}: column {column!r} is in {unit!r}, which driveid does not convert; use one "
+        f"of {sorted(table)} in the header (e.g. '{column} [{next(iter(table))}]') or convert "
+        f"the data to SI first; got {unit!r}"
+    )
 
 
 def _read_csv(path: Path) -> tuple[dict[str, np.ndarray], dict[str, str], dict[str, Any]]:
