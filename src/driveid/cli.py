@@ -12,6 +12,7 @@ import click
 
 from driveid import __version__
 from driveid.commands.demo import demo_command
+from driveid.commands.drive import drive_command
 from driveid.commands.friction import friction_map_command, idim_command
 from driveid.commands.instantaneous import hilbert_command, wavelet_command
 from driveid.commands.logdec import free_decay_command, logdec_command
@@ -48,6 +49,7 @@ def identify() -> None:
 
 
 simulate.add_command(free_decay_command)
+simulate.add_command(drive_command)
 for command in (logdec_command, hilbert_command, wavelet_command, friction_map_command,
                 idim_command):
     identify.add_command(command)

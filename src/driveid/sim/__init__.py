@@ -1,4 +1,8 @@
-"""Simulators: the exact 1-DOF oscillator and the lumped multi-body drive."""
+"""Simulators: the exact 1-DOF oscillator, the lumped multi-body drive, LuGre stick-slip.
+
+Presets of the thesis's plants are in :mod:`driveid.sim.presets`, TOML configs in
+:mod:`driveid.sim.config`.
+"""
 
 from driveid.sim.drive import (
     BacklashLink,
@@ -11,6 +15,7 @@ from driveid.sim.drive import (
     simulate_drive,
     simulate_free_decay_batch,
 )
+from driveid.sim.lugre import LuGreResult, simulate_lugre_oscillator
 from driveid.sim.oscillator import FreeDecay, OscillatorParams, measure, simulate_free_decay
 
 __all__ = [
@@ -27,4 +32,6 @@ __all__ = [
     "FreeDecayBatch",
     "simulate_drive",
     "simulate_free_decay_batch",
+    "LuGreResult",
+    "simulate_lugre_oscillator",
 ]
