@@ -149,6 +149,24 @@ def _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy):
 
 
 @njit(cache=True, inline="always")
+def _contact_gaps(y, nb, j, link):
+    """Penetrations (dp, dm) and contact event functions (gp, gm) of backlash link j.
+
+    g is positive while its + (or -) side is in contact. With tension allowed, contact is the
+    penetration alone; without, it also ends where the contact force ``k·δ ± c·δ'`` reaches
+    zero (the bodies separate before the gap opens).
+    """
+    rel = y[j] - y[j + 1]
+    vrel = y[nb + j] - y[nb + j + 1]
+    dp = rel - link[3]
+    dm = -link[4] - rel
+    if link[5] != 0.0:
+        return dp, dm, dp, dm
+    return (dp, dm, min(dp, link[1] * dp + link[2] * vrel),
+            min(dm, link[1] * dm - link[2] * vrel))
+
+
+@njit(cache=True, inline="always")
 def _validity(y, nb, modes, par, work, phi):
     """Event functions: >= 0 while the current mode holds, < 0 once it must switch.
 
@@ -168,15 +186,7 @@ def _validity(y, nb, modes, par, work, phi):
         phi[r] = 1.0
         if par[r, 0] != LINK_BACKLASH:
             continue
-        rel = y[j] - y[j + 1]
-        vrel = y[nb + j] - y[nb + j + 1]
-        dp = rel - par[r, 3]
-        dm = -par[r, 4] - rel
-        if par[r, 5] != 0.0:
-            gp, gm = dp, dm
-        else:
-            gp = min(dp, par[r, 1] * dp + par[r, 2] * vrel)
-            gm = min(dm, par[r, 1] * dm - par[r, 2] * vrel)
+        dp, dm, gp, gm = _contact_gaps(y, nb, j, par[r])
         if modes[r] == 0:
             phi[r] = -max(gp, gm)
         elif modes[r] > 0:
@@ -247,15 +257,7 @@ def _resolve(y, nb, modes, par, work, counts, energy_jump):
         r = nb + j
         if par[r, 0] != LINK_BACKLASH:
             continue
-        rel = y[j] - y[j + 1]
-        vrel = y[nb + j] - y[nb + j + 1]
-        dp = rel - par[r, 3]
-        dm = -par[r, 4] - rel
-        if par[r, 5] != 0.0:
-            gp, gm = dp, dm
-        else:
-            gp = min(dp, par[r, 1] * dp + par[r, 2] * vrel)
-            gm = min(dm, par[r, 1] * dm - par[r, 2] * vrel)
+        dp, dm, gp, gm = _contact_gaps(y, nb, j, par[r])
         m = modes[r]
         if m == 0:
             if gp > 0.0:
