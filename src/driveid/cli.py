@@ -1,7 +1,8 @@
 """The ``driveid`` command line: a thin layer over the public API.
 
 Every subcommand calls one public function. Errors the user can fix (bad input, missing
-files, refused overwrites) are printed as ``error: ...`` with exit status 2, never a traceback.
+files, refused overwrites) are printed as ``error: ...`` with exit status 2, never a traceback
+(:func:`driveid.commands.clean_errors` on every command).
 """
 
 from __future__ import annotations
@@ -16,34 +17,22 @@ from driveid.commands.drive import drive_command
 from driveid.commands.friction import friction_map_command, idim_command
 from driveid.commands.instantaneous import hilbert_command, wavelet_command
 from driveid.commands.logdec import free_decay_command, logdec_command
-from driveid.errors import DriveIdError
 
 __all__ = ["main", "cli"]
 
 
-class _Group(click.Group):
-    """A click group that turns our errors into one clear line and exit status 2."""
-
-    def invoke(self, ctx: click.Context):
-        try:
-            return super().invoke(ctx)
-        except (DriveIdError, FileNotFoundError, PermissionError, IsADirectoryError) as exc:
-            click.echo(f"error: {exc}", err=True)
-            ctx.exit(2)
-
-
-@click.group(cls=_Group)
+@click.group
 @click.version_option(__version__, prog_name="driveid")
 def cli() -> None:
     """driveid: model and identify friction, backlash and compliance in machine drives."""
 
 
-@cli.group(cls=_Group)
+@cli.group
 def simulate() -> None:
     """Simulate systems and write record files."""
 
 
-@cli.group(cls=_Group)
+@cli.group
 def identify() -> None:
     """Identify parameters from record files."""
 

@@ -194,7 +194,7 @@ def test_cli_writes_csv_and_refuses_to_overwrite(tmp_path):
     np.testing.assert_array_equal(record.u, expected.command)
 
     again = runner.invoke(drive_command, [str(config), "--out", str(out)])
-    assert again.exit_code != 0 and "exists" in str(again.exception)
+    assert again.exit_code == 2 and "exists" in again.output  # one clean line, no traceback
     forced = runner.invoke(drive_command, [str(config), "--out", str(out), "--force",
                                            "--duration", "0.5"])
     assert forced.exit_code == 0 and "251 samples" in forced.output
@@ -239,12 +239,13 @@ def test_cli_bad_suffix_and_duration(tmp_path):
     runner = CliRunner()
     result = runner.invoke(drive_command, ["--preset", "testbed-a", "--out",
                                            str(tmp_path / "o.npz")])
-    assert isinstance(result.exception, ConfigError)
-    assert "name the file *.csv" in str(result.exception)
+    # the command reports the ConfigError as one line with exit status 2
+    assert result.exit_code == 2 and "error: " in result.output
+    assert "name the file *.csv" in result.output
     result = runner.invoke(drive_command, ["--preset", "testbed-a", "--duration", "-1",
                                            "--out", str(tmp_path / "o.csv")])
-    assert isinstance(result.exception, ConfigError)
-    assert "--duration: RunOptions.duration must be positive" in str(result.exception)
+    assert result.exit_code == 2
+    assert "--duration: RunOptions.duration must be positive" in result.output
 
 
 def test_cli_reports_an_abort(tmp_path):

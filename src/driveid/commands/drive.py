@@ -10,6 +10,7 @@ import click
 import numpy as np
 
 from driveid._json import to_jsonable
+from driveid.commands import clean_errors
 from driveid.errors import ConfigError
 from driveid.io import ensure_writable
 from driveid.sim.config import RunOptions, load_drive_config, simulate_config
@@ -89,6 +90,7 @@ def write_drive_csv(result: DriveResult, path: str | Path, *, units: str = "rad"
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="CSV file to write: t, x1, v1, x2, v2 ..., command.")
 @click.option("--force", is_flag=True, help="Overwrite an existing output file.")
+@clean_errors
 def drive_command(config, preset_name, duration, out, force):
     """Simulate the lumped drive described by CONFIG (TOML) or --preset; write a CSV record."""
     if (config is None) == (preset_name is None):

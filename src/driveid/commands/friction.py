@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -10,23 +9,9 @@ from typing import Any
 
 import click
 
-from driveid.errors import DriveIdError
+from driveid.commands import clean_errors
 
 __all__ = ["friction_map_command", "idim_command"]
-
-
-def _clean_errors(func: Callable[..., Any]) -> Callable[..., Any]:
-    """Print our errors as one ``error: ...`` line with exit status 2, no traceback."""
-
-    @functools.wraps(func)
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
-        try:
-            return func(*args, **kwargs)
-        except (DriveIdError, FileNotFoundError) as exc:
-            click.echo(f"error: {exc}", err=True)
-            raise SystemExit(2) from None
-
-    return wrapper
 
 
 def _scale(value: str | None) -> float | str | None:
@@ -89,7 +74,7 @@ def _with_columns(func: Callable[..., Any]) -> Callable[..., Any]:
 @click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Save measured vs predicted force (PNG).")
 @click.option("--force", is_flag=True, help="Overwrite an existing figure file.")
-@_clean_errors
+@clean_errors
 def idim_command(file, validate_file, model, position, force_column, force_scale, units,
                  cutoff_hz, decimate, simulate, as_json, figure, force):
     """Identify inertia, Coulomb and viscous friction by inverse-model least squares."""
@@ -176,7 +161,7 @@ def _simulate_emps(est: Any, record: Any, path: Path) -> dict[str, float]:
 @click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Save friction vs velocity with the fitted maps (PNG).")
 @click.option("--force", is_flag=True, help="Overwrite an existing figure file.")
-@_clean_errors
+@clean_errors
 def friction_map_command(files, position, force_column, force_scale, units, velocity, models,
                          rel_tol, min_samples, as_json, figure, force):
     """Fit steady-velocity friction maps with + and − branches.

@@ -9,7 +9,7 @@ from typing import Any
 import click
 import numpy as np
 
-from driveid.errors import DriveIdError
+from driveid.commands import clean_errors
 from driveid.identify.hilbert import estimate_hilbert
 from driveid.identify.wavelet import estimate_wavelet
 from driveid.io import read_record
@@ -23,11 +23,6 @@ def _series(data: Any) -> dict[str, Any]:
     out = {key: np.asarray(data[key]).tolist() for key in _SERIES}
     out["window"] = list(data["window"])
     return out
-
-
-def _fail(exc: Exception) -> None:
-    click.echo(f"error: {exc}", err=True)
-    raise SystemExit(2)
 
 
 def _save(fig: Any, figure: Path, force: bool) -> None:
@@ -51,18 +46,16 @@ _FORCE = click.option("--force", is_flag=True, help="Overwrite an existing figur
 @_JSON
 @_FIGURE
 @_FORCE
+@clean_errors
 def hilbert_command(file: Path, mass: float | None, as_json: bool, figure: Path | None,
              force: bool) -> None:
     """Instantaneous ω0(t), ζ(t), backbone and damping curve by the Hilbert transform."""
-    try:
-        record = read_record(file)
-        est = estimate_hilbert(record, mass=mass)
-        if figure is not None:
-            from driveid.report.instantaneous_figures import plot_hilbert
+    record = read_record(file)
+    est = estimate_hilbert(record, mass=mass)
+    if figure is not None:
+        from driveid.report.instantaneous_figures import plot_hilbert
 
-            _save(plot_hilbert(est, record=record), figure, force)
-    except DriveIdError as exc:
-        _fail(exc)
+        _save(plot_hilbert(est, record=record), figure, force)
     if as_json:
         out = est.to_dict()
         out["series"] = _series(est.data_used)
@@ -84,18 +77,16 @@ def hilbert_command(file: Path, mass: float | None, as_json: bool, figure: Path 
 @_JSON
 @_FIGURE
 @_FORCE
+@clean_errors
 def wavelet_command(file: Path, modes: int, omega_c: float | None, as_json: bool,
              figure: Path | None, force: bool) -> None:
     """Modal ω0 and ζ of a free decay by the Morlet wavelet transform (one or more modes)."""
-    try:
-        record = read_record(file)
-        est = estimate_wavelet(record, modes=modes, omega_c=omega_c)
-        if figure is not None:
-            from driveid.report.instantaneous_figures import plot_wavelet
+    record = read_record(file)
+    est = estimate_wavelet(record, modes=modes, omega_c=omega_c)
+    if figure is not None:
+        from driveid.report.instantaneous_figures import plot_wavelet
 
-            _save(plot_wavelet(est, record=record), figure, force)
-    except DriveIdError as exc:
-        _fail(exc)
+        _save(plot_wavelet(est, record=record), figure, force)
     if as_json:
         out: dict[str, Any] = {"method": est.method, "modes": []}
         for k, m in enumerate(est.data_used["modes"], start=1):

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from driveid.commands import clean_errors
 from driveid.identify.logdec import estimate_log_decrement, estimate_log_decrement_thesis
 from driveid.io import read_record, write_record
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
@@ -48,6 +49,7 @@ __all__ = ["free_decay_command", "logdec_command"]
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Record file to write (.csv, .npz or .mat).")
 @click.option("--force", is_flag=True, help="Overwrite an existing output file.")
+@clean_errors
 def free_decay_command(J, K, c_mean, c_delta, fk_mean, fk_delta, fs_mean, fs_delta, x0,
                        duration, fs, noise, counts_per_rev, counts_per_metre, units, seed, out,
                        force):
@@ -80,6 +82,7 @@ def free_decay_command(J, K, c_mean, c_delta, fk_mean, fk_delta, fs_mean, fs_del
 @click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Save a figure of the record, its peaks and the fitted envelope (PNG).")
 @click.option("--force", is_flag=True, help="Overwrite an existing figure file.")
+@clean_errors
 def logdec_command(files, mass, stiffness, method, as_json, figure, force):
     """Identify asymmetric viscous and kinetic friction from free-decay FILES."""
     records = [read_record(f) for f in files]
