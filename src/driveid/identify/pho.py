@@ -34,6 +34,25 @@ Errata of §2.2.7 (checked numerically in ``tests/identify/test_pho.py``)
 
 A run with growing oscillation (σ < 0) is as valid as a decaying one.
 
+Asymmetric friction under delayed feedback
+------------------------------------------
+With ``C = c_mean + c_delta·s`` and ``F_k = fk_mean·s + fk_delta`` while moving in direction
+``s``, each half cycle is the delayed linear system above plus a constant force. A constant
+passes the delayed loop unchanged (``(D s + P) e^{-sΔ}`` at ``s = 0`` is ``P``), so the centre
+of the half cycle is ``-(fk_mean·s + fk_delta)/(K + P)``: the log decrement's
+``θk = F_k/(K + P)``, *not* the free-decay ``F_k/(J ω_0²) = F_k/(K + b)`` (the delayed loop
+adds ``b ≠ P`` to the oscillating part only). The two directions have their own roots
+``s_± = -σ_± + jω_{d,±}``, so ``c_mean ± c_delta + a(s_±) = 2Jσ_±`` and
+``c_delta = J(σ_+ - σ_-) - (a(s_+) - a(s_-))/2``. The switching of the constant at each
+reversal also excites the other (fast) roots of the delay equation; on the test bed and
+pendulum presets this changes θk by less than 1e-3 relative (``tests/identify/test_pho.py``
+measures it against :func:`driveid.sim.drive.simulate_drive`).
+
+With negative ``D`` the linear part grows (``σ < 0``) while kinetic friction still stops the
+motion: the peaks shrink by ``2θk`` per half cycle and grow by ``e^{|σ|π/ω_d}``, so the
+envelope narrows faster as it shrinks ("bullet-shaped", thesis §5, Fig. 5.3). The same
+equations hold; the log decrement simply returns ``ζ < 0``.
+
 References
 ----------
 .. [1] J. A. de Marchi, "Modeling of dynamic friction, impact backlash and elastic compliance
@@ -52,13 +71,23 @@ from scipy.optimize import minimize_scalar
 
 from driveid.errors import IdentificationError, ParameterError
 from driveid.identify.estimate import Estimate, Parameter
+from driveid.identify.logdec import MIN_PEAKS, estimate_log_decrement
+from driveid.io.record import Record
+from driveid.signal.peaks import Peaks, find_oscillation_peaks
 
 __all__ = [
     "PHORun",
     "delay_factors",
     "delay_factors_thesis",
     "estimate_pho_campaign",
+    "estimate_pho_records",
+    "pho_peaks",
+    "pho_run_from_records",
 ]
+
+
+_FRICTION_FEATURES = ("sigma_delta", "sigma_delta_se", "theta_k_mean", "theta_k_mean_se",
+                      "theta_k_delta", "theta_k_delta_se")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -79,6 +108,13 @@ class PHORun:
         Measured damped frequency ω_d [rad/s]; > 0 (the run must oscillate).
     omega_d_se : float
         Standard error of ``omega_d`` [rad/s]; > 0.
+    sigma_delta, sigma_delta_se : float, optional
+        Half the difference of the decay rates of the two directions, ``(σ_+ - σ_-)/2``
+        [1/s], and its standard error; nan (default) when not measured. Gives ``c_delta``.
+    theta_k_mean, theta_k_mean_se, theta_k_delta, theta_k_delta_se : float, optional
+        Kinetic-friction offsets of the half-cycle centres (log decrement ``θk``) [rad or m]
+        and their standard errors; nan (default) when not measured. Give ``fk_mean`` and
+        ``fk_delta`` through ``F = θk (K + P)`` (module notes).
     """
 
     P: float
@@ -87,6 +123,12 @@ class PHORun:
     sigma_se: float
     omega_d: float
     omega_d_se: float
+    sigma_delta: float = math.nan
+    sigma_delta_se: float = math.nan
+    theta_k_mean: float = math.nan
+    theta_k_mean_se: float = math.nan
+    theta_k_delta: float = math.nan
+    theta_k_delta_se: float = math.nan
 
     def __post_init__(self) -> None:
         for name in ("P", "D", "sigma", "sigma_se", "omega_d", "omega_d_se"):
@@ -94,6 +136,14 @@ class PHORun:
             if not math.isfinite(value):
                 raise ParameterError(f"PHORun.{name} must be finite; got {value!r}")
             object.__setattr__(self, name, float(value))
+        for name in _FRICTION_FEATURES:
+            object.__setattr__(self, name, float(getattr(self, name)))
+        for name in _FRICTION_FEATURES[1::2]:
+            value = getattr(self, name)
+            if value <= 0:
+                raise ParameterError(
+                    f"PHORun.{name} must be > 0 or nan (not measured); got {value!r}"
+                )
         for name in ("sigma_se", "omega_d_se"):
             if getattr(self, name) <= 0:
                 raise ParameterError(
@@ -320,8 +370,11 @@ def estimate_pho_campaign(
     Estimate
         ``J`` [kg·m² or kg], ``c_mean`` (viscous C) [N·m·s/rad or N·s/m], ``K`` [N·m/rad or
         N/m] (given value with zero error when ``K_known``), ``delay`` [s] (zero error when
-        given), with standard errors. Diagnostics: ``chi2`` (weighted residual sum of
-        squares, ~ 2n - p for consistent standard errors), ``dof``, ``condition``.
+        given), with standard errors; when every run carries ``sigma_delta`` also
+        ``c_delta``, and when every run carries the ``theta_k`` offsets also ``fk_mean``,
+        ``fk_delta`` [N·m or N] (inverse-variance means over the runs, module notes).
+        Diagnostics: ``chi2`` (weighted residual sum of squares, ~ 2n - p for consistent
+        standard errors), ``dof``, ``condition``.
 
     Raises
     ------
@@ -426,6 +479,7 @@ def estimate_pho_campaign(
     else:
         params["K"] = Parameter(float(K_known), 0.0, spec["K"])
     params["delay"] = Parameter(delay_hat, delay_se, "s")
+    params.update(_friction(runs, params, delay_hat, spec))
     return Estimate(
         method="pho-campaign",
         params=params,
@@ -442,3 +496,240 @@ def estimate_pho_campaign(
             "n_runs": n,
         },
     )
+
+
+def _weighted_mean(values, errors) -> tuple[float, float]:
+    w = 1.0 / np.asarray(errors) ** 2
+    return float(np.sum(w * values) / np.sum(w)), float(1.0 / math.sqrt(np.sum(w)))
+
+
+def _friction(runs, params, delay, spec) -> dict[str, Parameter]:
+    """``c_delta``, ``fk_mean``, ``fk_delta`` from the runs' directional features."""
+    out: dict[str, Parameter] = {}
+    J, J_se = params["J"].value, params["J"].stderr
+    K, K_se = params["K"].value, params["K"].stderr
+    force_unit = "N·m" if spec["J"] == "kg·m²" else "N"
+    if all(math.isfinite(r.sigma_delta) for r in runs):
+        values, errors, slopes = [], [], []
+        for r in runs:
+            w0sq = r.sigma**2 + r.omega_d**2
+            a = []
+            for sig in (r.sigma + r.sigma_delta, r.sigma - r.sigma_delta):
+                wd = math.sqrt(max(w0sq - sig**2, 0.0))
+                a.append(float(delay_factors(sig, wd, delay, P=r.P, D=r.D)[0]))
+            values.append(2.0 * J * r.sigma_delta - 0.5 * (a[0] - a[1]))
+            errors.append(2.0 * J * r.sigma_delta_se)
+            slopes.append(2.0 * r.sigma_delta)
+        value, se = _weighted_mean(values, errors)
+        slope = _weighted_mean(slopes, errors)[0]
+        out["c_delta"] = Parameter(value, math.hypot(se, slope * J_se), spec["c"])
+    for name in ("mean", "delta"):
+        theta = [getattr(r, f"theta_k_{name}") for r in runs]
+        theta_se = [getattr(r, f"theta_k_{name}_se") for r in runs]
+        if not all(math.isfinite(v) for v in theta):
+            continue
+        gain = np.array([K + r.P for r in runs])
+        if np.any(gain <= 0):
+            raise IdentificationError(
+                "K + P must be positive in every run for the kinetic-friction offset "
+                f"F/(K + P); got K + P = {gain.tolist()}; check the sign of P or of K_known"
+            )
+        value, se = _weighted_mean(np.array(theta) * gain, np.array(theta_se) * gain)
+        theta_bar = _weighted_mean(theta, theta_se)[0]
+        out[f"fk_{name}"] = Parameter(value, math.hypot(se, theta_bar * K_se), force_unit)
+    return out
+
+
+def pho_peaks(record: Record) -> Peaks:
+    """Oscillation peaks of one PD-feedback run, cut where the oscillation ends.
+
+    Under delayed feedback a body that sticks can be nudged loose again by the delayed
+    command and creep a little before it sticks for good; those late extrema are not half
+    cycles of the oscillation. Peaks are kept while they alternate and are at least 0.6
+    median half periods apart; the last kept one before such a cut is a stop, so its time
+    is marked invalid (its value stays exact).
+
+    Parameters
+    ----------
+    record : Record
+        One run: position [rad or m] after release into the feedback loop.
+
+    Returns
+    -------
+    Peaks
+        The usable peaks (see :func:`driveid.signal.peaks.find_oscillation_peaks`).
+
+    Raises
+    ------
+    IdentificationError
+        If the record does not oscillate.
+    """
+    pk = find_oscillation_peaks(record)
+    spacing = np.diff(pk.t)
+    regular = pk.time_valid[1:] & ~pk.stuck[1:]
+    half = float(np.median(spacing[regular])) if np.any(regular) else float(np.median(spacing))
+    direction = np.sign(np.diff(pk.x))
+    n = len(pk)
+    for k in range(1, len(pk)):
+        if spacing[k - 1] < 0.6 * half or direction[k - 1] == 0 or (
+            k >= 2 and direction[k - 1] == direction[k - 2]
+        ):
+            n = k
+            break
+    time_valid = pk.time_valid[:n].copy()
+    if n < len(pk):
+        time_valid[-1] = False
+    return Peaks(
+        t=pk.t[:n], x=pk.x[:n], index=pk.index[:n], stuck=pk.stuck[:n], time_valid=time_valid,
+        x_std=pk.x_std, x_se=None if pk.x_se is None else pk.x_se[:n],
+        t_se=None if pk.t_se is None else pk.t_se[:n],
+    )
+
+
+def pho_run_from_records(records: Sequence[Record], *, P: float, D: float) -> PHORun:
+    """Decay features of one (P, D) setting from its runs (usually a ± pair).
+
+    The runs share one extended log-decrement fit
+    (:func:`driveid.identify.logdec.estimate_log_decrement`): ω_0, ζ_± and the offsets θk.
+
+    Parameters
+    ----------
+    records : sequence of Record
+        Runs of the same gains, e.g. one from a positive and one from a negative initial
+        displacement [rad or m]; both directions of motion must occur.
+    P : float
+        Proportional gain of these runs [N·m/rad or N/m].
+    D : float
+        Derivative gain [N·m·s/rad or N·s/m].
+
+    Returns
+    -------
+    PHORun
+        σ = ζ̄ ω_0 and ω_d [1/s, rad/s] of the mean damping, ``sigma_delta`` and the
+        ``theta_k`` offsets, with standard errors from the fit.
+
+    Raises
+    ------
+    IdentificationError
+        If a run has fewer than 5 usable peaks or does not oscillate; the message names the run.
+    """
+    records = list(records)
+    peaks = []
+    for k, record in enumerate(records):
+        try:
+            pk = pho_peaks(record)
+        except IdentificationError as exc:
+            raise IdentificationError(
+                f"run {k} with P={P}, D={D}: {exc}. Repeat it with a larger P or initial "
+                "displacement (or a lower D), or leave it out of the campaign"
+            ) from None
+        if len(pk) < MIN_PEAKS:
+            raise IdentificationError(
+                f"run {k} with P={P}, D={D} has {len(pk)} usable peaks, the log decrement "
+                f"needs {MIN_PEAKS}: start it from a larger displacement or lower D"
+            )
+        peaks.append(pk)
+    ld = estimate_log_decrement(records, peaks=peaks)
+    w0, w0_se = ld.value("omega0"), ld.stderr("omega0")
+    zp, zm = ld.value("zeta_plus"), ld.value("zeta_minus")
+    zp_se, zm_se = ld.stderr("zeta_plus"), ld.stderr("zeta_minus")
+    zeta = 0.5 * (zp + zm)
+    if not abs(zeta) < 1:
+        raise IdentificationError(
+            f"runs with P={P}, D={D} are not underdamped oscillations (ζ = {zeta:.3g}); "
+            "raise P or lower D"
+        )
+    floor = 1e-12 * w0
+    return PHORun(
+        P=P, D=D,
+        sigma=zeta * w0,
+        sigma_se=max(math.hypot(0.5 * w0 * math.hypot(zp_se, zm_se), zeta * w0_se), floor),
+        omega_d=w0 * math.sqrt(1.0 - zeta**2),
+        omega_d_se=max(w0_se, floor),
+        sigma_delta=0.5 * (zp - zm) * w0,
+        sigma_delta_se=max(0.5 * w0 * math.hypot(zp_se, zm_se), floor),
+        theta_k_mean=ld.value("theta_k_mean"),
+        theta_k_mean_se=max(ld.stderr("theta_k_mean"), 1e-15),
+        theta_k_delta=ld.value("theta_k_delta"),
+        theta_k_delta_se=max(ld.stderr("theta_k_delta"), 1e-15),
+    )
+
+
+def _gains(record: Record, k: int) -> tuple[float, float]:
+    try:
+        P, D = float(record.meta["P"]), float(record.meta["D"])
+    except (KeyError, TypeError, ValueError):
+        raise ParameterError(
+            f"record {k} has no numeric meta['P'] and meta['D']; give each record the gains "
+            "of its run (a manifest entry's P and D)"
+        ) from None
+    if not (math.isfinite(P) and math.isfinite(D)):
+        raise ParameterError(f"record {k}: P and D must be finite; got P={P!r}, D={D!r}")
+    return P, D
+
+
+def estimate_pho_records(
+    records: Sequence[Record],
+    *,
+    delay: float | None = None,
+    K_known: float | None = None,
+    units: str | None = None,
+) -> Estimate:
+    """Physical J, C, K, asymmetric viscous and kinetic friction from a campaign's records.
+
+    Records are grouped by their gains ``meta["P"]``, ``meta["D"]``; each group (normally
+    a run from a positive and one from a negative initial displacement) gives one
+    :class:`PHORun` (:func:`pho_run_from_records`), and :func:`estimate_pho_campaign`
+    combines them.
+
+    Parameters
+    ----------
+    records : sequence of Record
+        The accepted runs [rad or m], each with ``meta["P"]`` [N·m/rad or N/m] and
+        ``meta["D"]`` [N·m·s/rad or N·s/m].
+    delay : float, optional
+        Loop delay Δ [s]; estimated from the campaign when None; ``0.0`` gives the
+        uncompensated analysis (the thesis's Table 5.2 situation).
+    K_known : float, optional
+        Known stiffness [N·m/rad or N/m], e.g. 0 for a drive without a spring.
+    units : {"rad", "m"}, optional
+        Default: the records' position unit.
+
+    Returns
+    -------
+    Estimate
+        ``J``, ``c_mean``, ``c_delta``, ``K``, ``fk_mean``, ``fk_delta``, ``delay`` with
+        standard errors (method ``"pho-campaign"``); diagnostics add ``n_records``.
+
+    Raises
+    ------
+    IdentificationError
+        For an ill-posed campaign (one setting, a run that does not oscillate ...); the
+        message says which run to add or repeat.
+    ParameterError
+        If a record lacks its gains.
+    """
+    records = list(records)
+    if not records:
+        raise IdentificationError(
+            "no records: a PHO campaign needs runs at two or more (P, D) settings, each "
+            "released once from a positive and once from a negative displacement"
+        )
+    groups: dict[tuple[float, float], list[Record]] = {}
+    for k, record in enumerate(records):
+        if not isinstance(record, Record):
+            raise ParameterError(f"records[{k}] must be a Record; got {type(record).__name__}")
+        groups.setdefault(_gains(record, k), []).append(record)
+    if len(groups) < 2:
+        (gains,) = groups
+        raise IdentificationError(
+            f"all {len(records)} record(s) share P={gains[0]}, D={gains[1]}, so the feedback "
+            "cannot be separated from J, C and K; add runs with a different P (and D)"
+        )
+    if units is None:
+        units = records[0].units["x"]
+    runs = [pho_run_from_records(group, P=P, D=D) for (P, D), group in groups.items()]
+    est = estimate_pho_campaign(runs, delay=delay, K_known=K_known, units=units)
+    diagnostics = dict(est.diagnostics, n_records=len(records))
+    return Estimate(method=est.method, params=est.params, data_used=est.data_used,
+                    diagnostics=diagnostics, warnings=est.warnings)
