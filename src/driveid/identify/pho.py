@@ -43,10 +43,25 @@ of the half cycle is ``-(fk_mean·s + fk_delta)/(K + P)``: the log decrement's
 ``θk = F_k/(K + P)``, *not* the free-decay ``F_k/(J ω_0²) = F_k/(K + b)`` (the delayed loop
 adds ``b ≠ P`` to the oscillating part only). The two directions have their own roots
 ``s_± = -σ_± + jω_{d,±}``, so ``c_mean ± c_delta + a(s_±) = 2Jσ_±`` and
-``c_delta = J(σ_+ - σ_-) - (a(s_+) - a(s_-))/2``. The switching of the constant at each
-reversal also excites the other (fast) roots of the delay equation; on the test bed and
-pendulum presets this changes θk by less than 1e-3 relative (``tests/identify/test_pho.py``
-measures it against :func:`driveid.sim.drive.simulate_drive`).
+``c_delta = J(σ_+ - σ_-) - (a(s_+) - a(s_-))/2``.
+
+The peaks see more than the centre, though. Write the response to a step ``ΔF`` of the
+friction force (one at every reversal) as ``ΔF·h(t)`` with
+``h(t) = g + Re(q e^{s_1 t}) + (fast roots)``, ``g = 1/(K + P)``, ``q = 2/(s_1 χ'(s_1))`` and
+``χ(s) = J s² + C s + K + (D s + P) e^{-sΔ}``. Peaks are half periods apart, where the fast
+roots have died out, so summing the steps gives the recursion
+
+.. math::
+
+    x_n = -ρ x_{n-1} + (1 + ρ) e_n - ρ ε ΔF_{n-1}, \qquad ε = g + \operatorname{Re} q,
+
+with ``e_n = -g F_{s_n}`` and ``ρ = e^{-σπ/ω_d}``. Without delay ``ε = 0`` (the free
+oscillator); with it, the reversal step ``ΔF = -2 fk_mean s`` leaves an extra term, so the
+log decrement's offsets are ``θk_delta = g·fk_delta`` but
+``θk_mean = fk_mean·(g - 2ρε/(1 + ρ))``. On the test bed (Δ = 13.77 ms) ignoring ε biases
+``fk_mean`` by -0.02 % at P = 2 to -0.8 % at P = 8, D = 0.2; with it the simulated runs
+agree to about 1e-4 (``tests/identify/test_pho_friction.py``). ``χ'`` uses the campaign's own
+J, C, K and Δ.
 
 With negative ``D`` the linear part grows (``σ < 0``) while kinetic friction still stops the
 motion: the peaks shrink by ``2θk`` per half cycle and grow by ``e^{|σ|π/ω_d}``, so the
@@ -113,8 +128,9 @@ class PHORun:
         [1/s], and its standard error; nan (default) when not measured. Gives ``c_delta``.
     theta_k_mean, theta_k_mean_se, theta_k_delta, theta_k_delta_se : float, optional
         Kinetic-friction offsets of the half-cycle centres (log decrement ``θk``) [rad or m]
-        and their standard errors; nan (default) when not measured. Give ``fk_mean`` and
-        ``fk_delta`` through ``F = θk (K + P)`` (module notes).
+        and their standard errors; nan (default) when not measured. Give ``fk_delta =
+        θk_delta (K + P)`` and ``fk_mean`` (``≈ θk_mean (K + P)``, corrected for the
+        delay, module notes).
     """
 
     P: float
@@ -523,21 +539,37 @@ def _friction(runs, params, delay, spec) -> dict[str, Parameter]:
         value, se = _weighted_mean(values, errors)
         slope = _weighted_mean(slopes, errors)[0]
         out["c_delta"] = Parameter(value, math.hypot(se, slope * J_se), spec["c"])
+    if all(math.isfinite(r.theta_k_mean) for r in runs):
+        stiff = np.array([K + r.P for r in runs])
+        if np.any(stiff <= 0):
+            raise IdentificationError(
+                "K + P must be positive in every run for the kinetic-friction offset "
+                f"F/(K + P); got K + P = {stiff.tolist()}; check the sign of P or of K_known"
+            )
     for name in ("mean", "delta"):
         theta = [getattr(r, f"theta_k_{name}") for r in runs]
         theta_se = [getattr(r, f"theta_k_{name}_se") for r in runs]
         if not all(math.isfinite(v) for v in theta):
             continue
-        gain = np.array([K + r.P for r in runs])
-        if np.any(gain <= 0):
-            raise IdentificationError(
-                "K + P must be positive in every run for the kinetic-friction offset "
-                f"F/(K + P); got K + P = {gain.tolist()}; check the sign of P or of K_known"
-            )
+        if name == "delta":
+            gain = stiff
+        else:
+            gain = np.array([1.0 / _mean_offset_gain(r, J, params["c_mean"].value, K, delay)
+                             for r in runs])
         value, se = _weighted_mean(np.array(theta) * gain, np.array(theta_se) * gain)
         theta_bar = _weighted_mean(theta, theta_se)[0]
         out[f"fk_{name}"] = Parameter(value, math.hypot(se, theta_bar * K_se), force_unit)
     return out
+
+
+def _mean_offset_gain(run, J, C, K, delay) -> float:
+    """``θk_mean / fk_mean`` of a delayed PD run: ``g - 2ρε/(1 + ρ)`` (module notes)."""
+    s = complex(-run.sigma, run.omega_d)
+    dchi = 2.0 * J * s + C + (run.D - delay * (run.D * s + run.P)) * np.exp(-s * delay)
+    g = 1.0 / (K + run.P)
+    eps = g + (2.0 / (s * dchi)).real
+    rho = math.exp(-run.sigma * math.pi / run.omega_d)
+    return g - 2.0 * rho * eps / (1.0 + rho)
 
 
 def pho_peaks(record: Record) -> Peaks:

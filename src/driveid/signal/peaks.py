@@ -157,6 +157,7 @@ def find_oscillation_peaks(
     idx, kind = _alternate(x, idx, kind)
     # the initial displacement (released at rest) is the zeroth peak when it is an extremum
     near_start = max(2, int(0.05 * period * fs))
+    released_late = False
     if idx.size and 0 < idx[0] <= near_start:
         idx[0] = 0  # a noisy flat top at the start: the release itself, at t[0]
     elif idx.size and idx[0] > 0:
@@ -174,10 +175,6 @@ def find_oscillation_peaks(
             idx = np.concatenate([[j], idx])
             kind = np.concatenate([[first_kind], kind])
             released_late = j > 0
-        else:
-            released_late = False
-    else:
-        released_late = False
     half_w = max(1, int(round(window * period * fs)))
     t_pk = np.empty(idx.size)
     x_pk = np.empty(idx.size)
