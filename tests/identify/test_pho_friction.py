@@ -146,3 +146,17 @@ def test_ill_posed_campaigns_say_what_to_add():
     bare = Record(one.t, one.x)
     with pytest.raises(ParameterError, match=r"meta\['P'\]"):
         estimate_pho_records([bare, one])
+
+
+def test_campaign_figure_shows_each_run_against_the_estimate(simulated, tmp_path):
+    plant, records = simulated
+    est = estimate_pho_records(records, delay=plant["delay"], K_known=0.0)
+    for name in ("c_mean", "fk_mean", "fk_delta"):
+        per_run = est.data_used[f"{name}_per_run"]
+        assert per_run.shape == (len(plant["grid"]),)
+        # each run alone within 5 % of the truth: the campaign is consistent run by run
+        np.testing.assert_allclose(per_run, plant[name], rtol=5e-2)
+    fig = est.plot()
+    path = tmp_path / "pho.png"
+    fig.savefig(path)
+    assert path.stat().st_size > 10_000

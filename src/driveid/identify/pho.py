@@ -495,15 +495,23 @@ def estimate_pho_campaign(
     else:
         params["K"] = Parameter(float(K_known), 0.0, spec["K"])
     params["delay"] = Parameter(delay_hat, delay_se, "s")
-    params.update(_friction(runs, params, delay_hat, spec))
+    friction, per_run = _friction(runs, params, delay_hat, spec)
+    params.update(friction)
+    P_arr, D_arr, sig, _, wd, _ = runs_arr.T
+    a, b = delay_factors(sig, wd, delay_hat, P=P_arr, D=D_arr)
+    J_hat = params["J"].value
     return Estimate(
         method="pho-campaign",
         params=params,
         data_used={
-            "P": runs_arr[:, 0],
-            "D": runs_arr[:, 1],
-            "sigma": runs_arr[:, 2],
-            "omega_d": runs_arr[:, 4],
+            "P": P_arr,
+            "D": D_arr,
+            "sigma": sig,
+            "omega_d": wd,
+            # what each run alone implies at the campaign's J and Δ (for consistency plots)
+            "c_mean_per_run": 2.0 * J_hat * sig - a,
+            "K_per_run": J_hat * (sig**2 + wd**2) - b,
+            **per_run,
         },
         diagnostics={
             "chi2": chi2,
@@ -519,9 +527,13 @@ def _weighted_mean(values, errors) -> tuple[float, float]:
     return float(np.sum(w * values) / np.sum(w)), float(1.0 / math.sqrt(np.sum(w)))
 
 
-def _friction(runs, params, delay, spec) -> dict[str, Parameter]:
-    """``c_delta``, ``fk_mean``, ``fk_delta`` from the runs' directional features."""
+def _friction(runs, params, delay, spec):
+    """``c_delta``, ``fk_mean``, ``fk_delta`` from the runs' directional features.
+
+    Returns the parameters and each run's own value of them (``<name>_per_run`` arrays).
+    """
     out: dict[str, Parameter] = {}
+    per_run: dict[str, np.ndarray] = {}
     J, J_se = params["J"].value, params["J"].stderr
     K, K_se = params["K"].value, params["K"].stderr
     force_unit = "N·m" if spec["J"] == "kg·m²" else "N"
@@ -539,6 +551,7 @@ def _friction(runs, params, delay, spec) -> dict[str, Parameter]:
         value, se = _weighted_mean(values, errors)
         slope = _weighted_mean(slopes, errors)[0]
         out["c_delta"] = Parameter(value, math.hypot(se, slope * J_se), spec["c"])
+        per_run["c_delta_per_run"] = np.array(values)
     if all(math.isfinite(r.theta_k_mean) for r in runs):
         stiff = np.array([K + r.P for r in runs])
         if np.any(stiff <= 0):
@@ -559,7 +572,8 @@ def _friction(runs, params, delay, spec) -> dict[str, Parameter]:
         value, se = _weighted_mean(np.array(theta) * gain, np.array(theta_se) * gain)
         theta_bar = _weighted_mean(theta, theta_se)[0]
         out[f"fk_{name}"] = Parameter(value, math.hypot(se, theta_bar * K_se), force_unit)
-    return out
+        per_run[f"fk_{name}_per_run"] = np.array(theta) * gain
+    return out, per_run
 
 
 def _mean_offset_gain(run, J, C, K, delay) -> float:

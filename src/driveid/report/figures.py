@@ -7,10 +7,17 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["plot_estimate", "plot_log_decrement", "save_figure"]
+__all__ = ["plot_estimate", "plot_log_decrement", "pyplot", "save_figure"]
 
 
-def _pyplot():
+def pyplot() -> Any:
+    """Return ``matplotlib.pyplot``, on the Agg backend when no display is available.
+
+    Returns
+    -------
+    module
+        ``matplotlib.pyplot``.
+    """
     import matplotlib
 
     if matplotlib.get_backend().lower() not in ("agg", "pdf", "svg") and not _has_display():
@@ -54,6 +61,10 @@ def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
         from driveid.report.instantaneous_figures import plot_wavelet
 
         return plot_wavelet(estimate, record=record)
+    if method == "pho-campaign":
+        from driveid.report.pho_figures import plot_pho_campaign
+
+        return plot_pho_campaign(estimate)
     if method.startswith("idim"):
         from driveid.report.friction_figures import plot_idim
 
@@ -81,7 +92,7 @@ def plot_log_decrement(estimate: Any, *, record: Any = None, ax: Any = None) -> 
     matplotlib.figure.Figure
         The figure.
     """
-    plt = _pyplot()
+    plt = pyplot()
     if ax is None:
         fig, ax = plt.subplots(figsize=(9, 4.5), constrained_layout=True)
     else:
@@ -141,5 +152,5 @@ def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False) -> Path:
 
     path = ensure_writable(path, overwrite=overwrite)
     fig.savefig(path, dpi=120)
-    _pyplot().close(fig)
+    pyplot().close(fig)
     return path

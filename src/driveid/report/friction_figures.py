@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from driveid.report.figures import _pyplot
+from driveid.report.figures import pyplot
 
 __all__ = ["plot_friction_map", "plot_idim"]
 
@@ -33,7 +33,7 @@ def plot_friction_map(result: Any, *, ax: Any = None) -> Any:
     """
     from driveid.identify.friction_map import BRANCH_MAPS
 
-    plt = _pyplot()
+    plt = pyplot()
     if ax is None:
         fig, ax = plt.subplots(figsize=(7, 4.5))
     else:
@@ -89,7 +89,7 @@ def plot_idim(estimate: Any, validation: Any = None) -> Any:
     matplotlib.figure.Figure
         One panel per record: force [N or N·m] against time [s] with the relative error.
     """
-    plt = _pyplot()
+    plt = pyplot()
     n = 1 if validation is None else 2
     fig, axes = plt.subplots(n, 1, figsize=(8, 3.2 * n), squeeze=False)
     force_unit = estimate.diagnostics.get("force_unit", "")

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from driveid.report.figures import _pyplot
+from driveid.report.figures import pyplot
 
 __all__ = ["plot_hilbert", "plot_wavelet"]
 
@@ -26,7 +26,7 @@ def plot_hilbert(estimate: Any, *, record: Any = None) -> Any:
     matplotlib.figure.Figure
         The figure.
     """
-    plt = _pyplot()
+    plt = pyplot()
     d = estimate.data_used
     xunit = record.units.get("x", "rad") if record is not None else "rad"
     uunit = record.units.get("u", "N·m") if record is not None else "N·m"
@@ -76,7 +76,7 @@ def plot_wavelet(estimate: Any, *, record: Any = None) -> Any:
     matplotlib.figure.Figure
         The figure.
     """
-    plt = _pyplot()
+    plt = pyplot()
     d = estimate.data_used
     xunit = record.units.get("x", "rad") if record is not None else "rad"
     sc = d["scalogram"]
