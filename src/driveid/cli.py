@@ -17,6 +17,7 @@ from driveid.commands.drive import drive_command
 from driveid.commands.friction import friction_map_command, idim_command
 from driveid.commands.instantaneous import hilbert_command, wavelet_command
 from driveid.commands.logdec import free_decay_command, logdec_command
+from driveid.commands.pho import pho_group
 
 __all__ = ["main", "cli"]
 
@@ -42,6 +43,7 @@ simulate.add_command(drive_command)
 for command in (logdec_command, hilbert_command, wavelet_command, friction_map_command,
                 idim_command):
     identify.add_command(command)
+cli.add_command(pho_group)
 cli.add_command(demo_command)
 
 

@@ -1,6 +1,14 @@
-"""Records and their files: the :class:`Record` type, CSV/NPZ/MATLAB readers and writers."""
+"""Records and their files: Record, CSV/NPZ/MATLAB readers and writers, campaign manifests."""
 
 from driveid.io.files import SUFFIXES, ensure_writable, read_record, write_record
+from driveid.io.manifest import (
+    MANIFEST_NAME,
+    Manifest,
+    ManifestRun,
+    manifest_from_dict,
+    read_manifest,
+    write_manifest,
+)
 from driveid.io.record import DEFAULT_UNITS, MIN_SAMPLES, Record
 
 __all__ = [
@@ -11,4 +19,10 @@ __all__ = [
     "SUFFIXES",
     "DEFAULT_UNITS",
     "MIN_SAMPLES",
+    "Manifest",
+    "ManifestRun",
+    "MANIFEST_NAME",
+    "read_manifest",
+    "write_manifest",
+    "manifest_from_dict",
 ]
