@@ -11,8 +11,8 @@ from driveid.experiment import SimulatedPlant
 from driveid.sim.presets import TABLE_5_2_PUBLISHED
 
 A = TABLE_5_2_PUBLISHED["A"]
-SMALL = ["--P", "5,7", "--n-D", "2", "--duration", "2.5", "--counts-per-rev", "4000",
-         "--seed", "1"]
+SMALL = ["--P", "5,7", "--D-start", "0.1", "--D-step", "0.02", "--n-D", "2", "--duration",
+         "2.5", "--counts-per-rev", "4000", "--seed", "1"]
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +28,7 @@ def test_run_writes_the_campaign_and_prints_a_summary(campaign):
     assert "8 of 8 runs accepted" in result.output
     assert f"manifest: {out / 'manifest.json'}" in result.output
     lines = [ln.split() for ln in result.output.splitlines() if ln.strip()[:1].isdigit()]
-    # run, P, D, x0 for the grid P = 5, 7 and D = 0.1, 0.12 (preset D, step 0.2 D)
+    # run, P, D, x0 for the grid P = 5, 7 and D = 0.1, 0.12
     assert [tuple(ln[:4]) for ln in lines[:4]] == [("1", "5", "0.1", "1"), ("2", "5", "0.1", "-1"),
                                                   ("3", "5", "0.12", "1"),
                                                   ("4", "5", "0.12", "-1")]
@@ -48,9 +48,9 @@ def test_second_run_into_the_same_folder_is_refused(campaign):
 
 def test_default_campaign_of_testbed_a():
     d = preset_campaign_defaults("testbed-a")
-    # P·[1, 1.2, 1.4], D·[1, 1.2, 1.4] of the preset's P = 5, D = 0.1; x0 = 50 fk/P ≈ 1.1
-    assert d["P_values"] == [5.0, 6.0, 7.0]
-    assert (d["D_start"], d["D_step"], d["n_D"], d["x0"]) == (0.1, 0.02, 3, 1.0)
+    # P·[0.4, 0.6, 0.8], D·[0.3, 0.4, 0.5] of the preset's P = 5, D = 0.1; x0 = 50 fk/P ≈ 1.1
+    assert d["P_values"] == [2.0, 3.0, 4.0]
+    assert (d["D_start"], d["D_step"], d["n_D"], d["x0"]) == (0.03, 0.01, 3, 1.0)
 
 
 def test_run_rejects_conflicting_options(tmp_path):

@@ -46,22 +46,26 @@ def preset_campaign_defaults(name: str) -> dict:
     Returns
     -------
     dict
-        ``P_values`` (P0·[1, 1.2, 1.4]) [N·m/rad or N/m], ``D_start`` (D0), ``D_step``
-        (0.2·D0) [N·m·s/rad or N·s/m], ``n_D`` (3), ``x0`` (50 fk/P0 rounded to one digit,
-        i.e. about 25 Coulomb decrements 2 fk/P0) [rad or m] and ``duration`` (5 s).
+        ``P_values`` (P0·[0.4, 0.6, 0.8]) [N·m/rad or N/m], ``D_start`` (0.3·D0),
+        ``D_step`` (0.1·D0) [N·m·s/rad or N·s/m], ``n_D`` (3), ``x0`` (50 fk/P0 rounded to
+        one digit) [rad or m] and ``duration`` (5 s).
 
     Notes
     -----
-    For "testbed-a" this gives P = 5, 6, 7 N·m/rad, D = 0.10, 0.12, 0.14 N·m·s/rad and
-    x0 = 1 rad: 6 to 32 peaks per run, each settled within 4 s.
+    Gains below the preset's keep the delay's phase lag ``PΔ`` small and the net damping
+    near zero, so runs ring long and c_mean (the small difference ``2Jσ - a``) is well
+    resolved; the few settings whose oscillation grows hit the safety abort and are
+    rejected. For "testbed-a": P = 2, 3, 4 N·m/rad, D = 0.03, 0.04, 0.05 N·m·s/rad,
+    x0 = 1 rad; with 8000 counts/rev 12 of 18 runs are accepted and J, c_mean, fk_mean come
+    back within 0.02 %, 1.1 %, 0.01 %.
     """
     params = preset(name)
     fb = params.feedback
     fk = sum(b.fk_mean for b in params.bodies)
     x0 = _round(50.0 * fk / fb.P) if fk > 0 else 1.0
-    return {"P_values": [round(fb.P * f, 12) for f in (1.0, 1.2, 1.4)],
-            "D_start": fb.D, "D_step": round(0.2 * fb.D, 12), "n_D": 3, "x0": x0,
-            "duration": 5.0}
+    return {"P_values": [round(fb.P * f, 12) for f in (0.4, 0.6, 0.8)],
+            "D_start": round(0.3 * fb.D, 12), "D_step": round(0.1 * fb.D, 12), "n_D": 3,
+            "x0": x0, "duration": 5.0}
 
 
 @click.group("pho")
@@ -100,7 +104,7 @@ def pho_group():
 @click.option("--seed", type=int, default=None, help="Seed of the noise generator.")
 @click.option("--abort-limit", type=float, default=None,
               help="Safety abort when |command| exceeds it [N·m or N] (default 2·max(P)·x0).")
-@click.option("--min-peaks", type=int, default=4, show_default=True,
+@click.option("--min-peaks", type=int, default=5, show_default=True,
               help="Fewest oscillation peaks for an accepted run.")
 @click.option("--K", "K", type=float, default=None,
               help="Stiffness known a priori, written to the manifest (e.g. 0).")
