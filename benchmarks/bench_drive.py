@@ -6,6 +6,8 @@ W1x1000  the same with every parameter drawn ±30 %: simulate_free_decay_batch.
 W3  three-body drive (motor, backlash, arm, shaft, tool) under delayed PD, 5 s: ours vs
     LSODA by the method of steps (one solve_ivp per delay interval, delayed state from the
     previous interval's dense output).
+W3x100  100 such drives with inertias, friction, stiffnesses and gains drawn +-30 %:
+    simulate_drive_batch vs a Python loop of simulate_drive over the same drives.
 
 Accuracy is measured against a much finer run of our own in the same process. Ratios, not
 absolute times, are the result (this machine is shared). Run: python benchmarks/bench_drive.py
@@ -16,6 +18,7 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from driveid.sim.batch import simulate_drive_batch, simulate_free_decay_batch
 from driveid.sim.drive import (
     BacklashLink,
     BodyParams,
@@ -23,7 +26,6 @@ from driveid.sim.drive import (
     PDFeedback,
     ShaftLink,
     simulate_drive,
-    simulate_free_decay_batch,
 )
 
 W1 = dict(J=1.0, K=16.0, c_mean=0.3, c_delta=0.1, fk_mean=0.07, fk_delta=0.03, fs_mean=0.105)
@@ -74,13 +76,15 @@ def w1_solve_ivp(p, t_eval, x0=1.0):
     return x
 
 
-def w3_params():
-    bodies = (BodyParams(J=0.0115, c_mean=1e-3, fk_mean=0.02), BodyParams(J=0.0035),
-              BodyParams(J=0.016, c_mean=2e-3, fk_mean=0.05))
-    links = (BacklashLink(gap_plus=0.01, gap_minus=0.01, k=1e4, c=2.0),
-             ShaftLink(k=50.0, c=0.05))
+def w3_params(s=(1.0,) * 10):
+    """W3; ``s`` scales Jm, cm, fkm, Ja, Jt, ct, fkt, kc, ks, P (Monte Carlo draws)."""
+    bodies = (BodyParams(J=0.0115 * s[0], c_mean=1e-3 * s[1], fk_mean=0.02 * s[2]),
+              BodyParams(J=0.0035 * s[3]),
+              BodyParams(J=0.016 * s[4], c_mean=2e-3 * s[5], fk_mean=0.05 * s[6]))
+    links = (BacklashLink(gap_plus=0.01, gap_minus=0.01, k=1e4 * s[7], c=2.0),
+             ShaftLink(k=50.0 * s[8], c=0.05))
     return DriveParams(bodies=bodies, links=links,
-                       feedback=PDFeedback(P=5.0, D=0.3, delay=0.01, reference=1.0))
+                       feedback=PDFeedback(P=5.0 * s[9], D=0.3, delay=0.01, reference=1.0))
 
 
 def w3_lsoda(t_eval, rtol=1e-6, atol=1e-9, v_smooth=1e-3):
@@ -168,6 +172,21 @@ def main():
     print(f"  LSODA/steps {t_ls * 1e3:8.1f} ms  max|err| {err_ls:.1e} rad"
           " (its model: tanh friction, no stiction)")
     print(f"  speed-up vs LSODA: {t_ls / t_w3:.1f}x   (target >= 10x)")
+
+    print("== W3 x 100, inertias, friction, stiffnesses and P drawn +-30 %, 5 s each")
+    rng = np.random.default_rng(0)
+    drives = [w3_params(rng.uniform(0.7, 1.3, 10)) for _ in range(100)]
+    simulate_drive_batch(drives[:2], duration=0.1)
+    t_b, batch = best_of(lambda: simulate_drive_batch(drives, duration=5.0), 2)
+    t_l, loop = best_of(lambda: [simulate_drive(d, duration=5.0) for d in drives], 2)
+    simulate_drive_batch(drives[:2], duration=0.1, parallel=True)
+    t_p, par = best_of(lambda: simulate_drive_batch(drives, duration=5.0, parallel=True), 2)
+    same = max(np.max(np.abs(b.x - one.x)) for b, one in zip(batch + par, loop + loop,
+                                                             strict=True))
+    print(f"  loop of simulate_drive {t_l * 1e3:8.1f} ms ({t_l * 10:.2f} ms/run)")
+    print(f"  batch, one thread      {t_b * 1e3:8.1f} ms   loop/batch {t_l / t_b:.2f}x")
+    print(f"  batch, parallel=True   {t_p * 1e3:8.1f} ms   loop/batch {t_l / t_p:.2f}x"
+          f"   max|batch - loop| {same:.0e}")
 
 
 if __name__ == "__main__":

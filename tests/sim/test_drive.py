@@ -6,6 +6,7 @@ import pytest
 from driveid.errors import ParameterError, SimulationError
 from driveid.models.backlash import ImpactParams, contact_duration, restitution
 from driveid.sim import OscillatorParams, simulate_free_decay
+from driveid.sim.batch import simulate_free_decay_batch
 from driveid.sim.drive import (
     BacklashLink,
     BodyParams,
@@ -13,7 +14,6 @@ from driveid.sim.drive import (
     PDFeedback,
     ShaftLink,
     simulate_drive,
-    simulate_free_decay_batch,
 )
 
 W1 = dict(J=1.0, K=16.0, c_mean=0.3, c_delta=0.1, fk_mean=0.07, fk_delta=0.03, fs_mean=0.105)

@@ -32,6 +32,7 @@ from driveid.errors import ParameterError
 __all__ = [
     "ACMotorParams",
     "DCMotorParams",
+    "MotorAmplifier",
     "ac_motor_tf",
     "dc_motor_tf",
     "dc_motor_tf_split",
@@ -281,3 +282,90 @@ def dc_motor_tf_split(params: DCMotorParams, *, friction_plus, friction_zero, fr
         num, den = _dc_poly(params, fr, True, gain)
         out[key] = TransferFunction(num, den)
     return out
+
+
+_MOTOR_MODES = ("voltage", "current")
+
+
+@dataclass(frozen=True, kw_only=True)
+class MotorAmplifier:
+    r"""DC motor armature and amplifier driving the motor body (Eqs. 2.105–2.108).
+
+    The command ``u`` of the drive (feedback or external) enters the amplifier; the motor
+    torque ``k_m i`` [N·m] acts on the motor body. The rotor inertia and friction belong to
+    that body, not to this object.
+
+    Parameters
+    ----------
+    k_m : float
+        Torque constant [N·m/A], > 0.
+    k_emf : float
+        Back-EMF constant [V·s/rad], >= 0 (≈ ``k_m`` in SI units); used in voltage mode.
+    R_m : float
+        Armature resistance [Ω], > 0.
+    L_m : float
+        Armature inductance [H], >= 0; 0 makes the current quasi-static
+        (``i = (V - k_emf ω)/R_m``, the reduced form 2.106).
+    k_a : float
+        Amplifier gain, > 0: [V per command unit] in voltage mode, [A per command unit] in
+        current mode (the thesis's ``k_a``, 2.107–2.108).
+    mode : {"voltage", "current"}, optional
+        ``"voltage"``: ``V = k_a u`` and ``L_m di/dt = V - R_m i - k_emf ω`` (2.105).
+        ``"current"``: a current loop of bandwidth ``current_bandwidth`` tracks ``k_a u``,
+        ``di/dt = ω_c (k_a u - i)``; the loop rejects the back-EMF. Default ``"voltage"``.
+    current_bandwidth : float, optional
+        Current-loop bandwidth ``ω_c`` [rad/s], > 0, or ``inf`` for an ideal loop
+        (``i = k_a u``); current mode only. Default ``inf``.
+    voltage_limit : float, optional
+        Amplifier output saturation ``|V| <= voltage_limit`` [V], > 0; default ``inf``.
+    current_limit : float, optional
+        Armature current saturation ``|i| <= current_limit`` [A], > 0; default ``inf``. In
+        voltage mode with ``L_m = 0`` and in ideal current mode the current is clipped; with a
+        current state it is the commanded current (current mode) or the integrated current
+        (voltage mode, as an anti-windup clamp) that is limited.
+
+    Notes
+    -----
+    With ``L_m = 0``, voltage mode and viscous friction ``c`` on a motor body of inertia
+    ``J``, a constant command ``u`` gives ``ω_ss = k_m k_a u/(R_m c + k_m k_emf)`` with time
+    constant ``J R_m/(R_m c + k_m k_emf)``, consistent with (2.106)–(2.108).
+
+    Examples
+    --------
+    >>> m = MotorAmplifier(k_m=0.1, k_emf=0.1, R_m=1.0, L_m=0.0, k_a=2.0)
+    >>> m.mode, m.quasi_static
+    ('voltage', True)
+    """
+
+    k_m: float
+    k_emf: float
+    R_m: float
+    L_m: float
+    k_a: float
+    mode: str = "voltage"
+    current_bandwidth: float = float("inf")
+    voltage_limit: float = float("inf")
+    current_limit: float = float("inf")
+
+    def __post_init__(self):
+        _real(self, "k_m", "N·m/A")
+        _real(self, "k_emf", "V·s/rad", strict=False)
+        _real(self, "R_m", "Ω")
+        _real(self, "L_m", "H", strict=False)
+        _real(self, "k_a", "V or A per command unit")
+        if self.mode not in _MOTOR_MODES:
+            raise ParameterError(
+                f"mode must be 'voltage' or 'current'; got {self.mode!r}")
+        for name, unit in (("current_bandwidth", "rad/s"), ("voltage_limit", "V"),
+                           ("current_limit", "A")):
+            v = float(getattr(self, name))
+            if np.isnan(v) or not v > 0.0:
+                raise ParameterError(
+                    f"{name} must be positive [{unit}] (inf for none); got {v!r}")
+
+    @property
+    def quasi_static(self) -> bool:
+        """True when the armature current has no state of its own (algebraic current)."""
+        if self.mode == "voltage":
+            return self.L_m == 0.0
+        return not np.isfinite(self.current_bandwidth)

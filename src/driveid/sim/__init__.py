@@ -4,16 +4,15 @@ Presets of the thesis's plants are in :mod:`driveid.sim.presets`, TOML configs i
 :mod:`driveid.sim.config`.
 """
 
+from driveid.sim.batch import FreeDecayBatch, simulate_drive_batch, simulate_free_decay_batch
 from driveid.sim.drive import (
     BacklashLink,
     BodyParams,
     DriveParams,
     DriveResult,
-    FreeDecayBatch,
     PDFeedback,
     ShaftLink,
     simulate_drive,
-    simulate_free_decay_batch,
 )
 from driveid.sim.lugre import LuGreResult, simulate_lugre_oscillator
 from driveid.sim.oscillator import FreeDecay, OscillatorParams, measure, simulate_free_decay
@@ -31,6 +30,7 @@ __all__ = [
     "DriveResult",
     "FreeDecayBatch",
     "simulate_drive",
+    "simulate_drive_batch",
     "simulate_free_decay_batch",
     "LuGreResult",
     "simulate_lugre_oscillator",

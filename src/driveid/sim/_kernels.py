@@ -1,10 +1,14 @@
 """Compiled (numba) hot loops of the lumped drive simulator; private, see :mod:`driveid.sim.drive`.
 
-Two kernels:
+Kernels:
 
 * :func:`drive_kernel` — fixed-step RK4 on a chain of bodies with event location (Illinois
-  secant on the event functions) for velocity zeros, breakaway, and contact entry/exit, and a
-  PD feedback with a pure delay read from a history of past states (cubic Hermite).
+  secant on the event functions) for velocity zeros, breakaway, and contact entry/exit
+  (Kelvin–Voigt contact, or a Newton restitution impulse at the gap edge), and a PD feedback
+  with a pure delay read from a history of past states (cubic Hermite); resumable, so a
+  sampled-data controller can run it one control period at a time.
+* :func:`drive_batch_kernel` (and ``_parallel``) — :func:`drive_kernel` over many
+  parameter sets in one call.
 * :func:`free_decay_batch_kernel` — the exact piecewise closed form of the 1-DOF oscillator
   with stiction for many parameter sets (the Monte-Carlo path).
 
@@ -16,7 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 # body modes
 LOCKED = 2
@@ -25,6 +29,7 @@ STUCK = 0
 LINK_NONE = 0
 LINK_SHAFT = 1
 LINK_BACKLASH = 2
+LINK_IMPACT = 3  # restitution contact; compliant (as LINK_BACKLASH) while resting
 # status codes
 OK = 0
 ABORTED = 1
@@ -99,7 +104,7 @@ def _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work):
         vrel = y[nb + j] - y[nb + j + 1]
         if par[r, 0] == LINK_SHAFT:
             f = par[r, 1] * rel + par[r, 2] * vrel
-        elif par[r, 0] == LINK_BACKLASH:
+        elif par[r, 0] >= LINK_BACKLASH:
             if modes[r] > 0:
                 f = par[r, 1] * (rel - par[r, 3]) + par[r, 2] * vrel
             elif modes[r] < 0:
@@ -140,7 +145,7 @@ def _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy):
         vrel = y[nb + j] - y[nb + j + 1]
         if par[r, 0] == LINK_SHAFT:
             p_diss += par[r, 2] * vrel * vrel
-        elif par[r, 0] == LINK_BACKLASH and modes[r] != 0:
+        elif par[r, 0] >= LINK_BACKLASH and modes[r] != 0:
             p_contact += work[r] * vrel
     dy[2 * nb] = p_in
     dy[2 * nb + 1] = p_diss
@@ -184,7 +189,7 @@ def _validity(y, nb, modes, par, work, phi):
     for j in range(nb - 1):
         r = nb + j
         phi[r] = 1.0
-        if par[r, 0] != LINK_BACKLASH:
+        if par[r, 0] < LINK_BACKLASH:
             continue
         dp, dm, gp, gm = _contact_gaps(y, nb, j, par[r])
         if modes[r] == 0:
@@ -223,12 +228,44 @@ def _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, stage,
 
 
 @njit(cache=True)
+def _impulse(y, nb, j, modes, par, side, pen, counts, energy_jump):
+    """Newton impact on link j: relative velocity -> -e·(relative velocity), momentum kept.
+
+    A locked body has infinite inertia. The (round-off sized) penetration ``pen`` is undone
+    about the centre of mass so the link leaves the impact exactly at its gap edge.
+    energy_jump[1] accumulates the loss ``½ μ (1 - e²) v_rel²``.
+    """
+    e = par[nb + j, 6]
+    vrel = y[nb + j] - y[nb + j + 1]
+    lock1 = modes[j] == LOCKED
+    lock2 = modes[j + 1] == LOCKED
+    if lock1:
+        w1, w2, mu = 0.0, 1.0, par[j + 1, 0]
+    elif lock2:
+        w1, w2, mu = 1.0, 0.0, par[j, 0]
+    else:
+        msum = par[j, 0] + par[j + 1, 0]
+        w1, w2, mu = par[j + 1, 0] / msum, par[j, 0] / msum, par[j, 0] * par[j + 1, 0] / msum
+    y[nb + j] -= (1.0 + e) * w1 * vrel
+    y[nb + j + 1] += (1.0 + e) * w2 * vrel
+    y[j] -= side * pen * w1
+    y[j + 1] += side * pen * w2
+    energy_jump[1] += 0.5 * mu * (1.0 - e * e) * vrel * vrel
+    for i in (j, j + 1):
+        if modes[i] != LOCKED and y[nb + i] != 0.0:
+            new = 1 if y[nb + i] > 0.0 else -1
+            if new != modes[i]:
+                counts[0] += 1
+            modes[i] = new
+
+
+@njit(cache=True)
 def _resolve(y, nb, modes, par, work, counts, energy_jump):
     """Switch every mode whose event function is negative (or a body at v = 0).
 
     ``work`` holds the forces at ``y``. counts = [mode switches, impacts]; energy_jump[0]
     accumulates the contact energy lost when a no-tension contact opens with residual
-    penetration.
+    penetration, energy_jump[1] the loss of restitution impacts.
     """
     for i in range(nb):
         m = modes[i]
@@ -255,17 +292,26 @@ def _resolve(y, nb, modes, par, work, counts, energy_jump):
             modes[i] = new
     for j in range(nb - 1):
         r = nb + j
-        if par[r, 0] != LINK_BACKLASH:
+        if par[r, 0] < LINK_BACKLASH:
             continue
         dp, dm, gp, gm = _contact_gaps(y, nb, j, par[r])
         m = modes[r]
         if m == 0:
-            if gp > 0.0:
-                modes[r] = 1
-                counts[1] += 1
-            elif gm > 0.0:
-                modes[r] = -1
-                counts[1] += 1
+            side = 1 if gp > 0.0 else (-1 if gm > 0.0 else 0)
+            if side == 0:
+                continue
+            approach = side * (y[nb + j] - y[nb + j + 1])
+            if par[r, 0] == LINK_IMPACT and approach > par[r, 7]:
+                _impulse(y, nb, j, modes, par, side, dp if side > 0 else dm, counts,
+                         energy_jump)
+                if side * (y[nb + j] - y[nb + j + 1]) >= -par[r, 7]:
+                    modes[r] = side  # (nearly) plastic: resting contact at once
+            elif (par[r, 0] == LINK_IMPACT and approach < -par[r, 7]
+                  and (dp if side > 0 else dm) <= 1e-12):
+                continue  # separating at the gap edge after an impulse: stays open
+            else:
+                modes[r] = side  # slow approach: resting (compliant) contact
+            counts[1] += 1
         elif (m > 0 and gp <= 0.0) or (m < 0 and gm <= 0.0):
             d = dp if m > 0 else dm
             if d > 0.0:
@@ -274,13 +320,16 @@ def _resolve(y, nb, modes, par, work, counts, energy_jump):
 
 
 @njit(cache=True)
-def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_events):
+def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_events,
+                 resume, jump0):
     """Integrate the chain; see :func:`driveid.sim.drive.simulate_drive`.
 
-    ``modes0``: per body LOCKED or 1, then 0 per link. Returns (x_out, v_out, cmd_out,
-    energy_out, counts, status, abort_index, abort_value) where energy_out rows are input
-    work, dissipation (bodies, shafts), contact work, contact release loss, energy stored in
-    closed contacts.
+    ``modes0``: per body LOCKED or 1, then 0 per link; with ``resume`` the modes of a
+    previous call (bodies keep STUCK, contacts their side) and ``jump0`` its release and
+    impact losses, so a run can continue interval by interval. Returns (x_out, v_out,
+    cmd_out, energy_out, counts, status, abort_index, abort_value, modes) where energy_out
+    rows are input work, dissipation (bodies, shafts), contact work, contact release loss,
+    energy stored in closed contacts, restitution impact loss.
     """
     nb = (modes0.shape[0] + 1) // 2
     nl = nb - 1
@@ -298,11 +347,11 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
     phi0 = np.zeros(nb + nl)
     phi1 = np.zeros(nb + nl)
     counts = np.zeros(2, dtype=np.int64)
-    jump = np.zeros(1)
+    jump = jump0.copy()
     x_out = np.full((nb, n_out), np.nan)
     v_out = np.full((nb, n_out), np.nan)
     cmd_out = np.full(n_out, np.nan)
-    e_out = np.full((5, n_out), np.nan)
+    e_out = np.full((6, n_out), np.nan)
     has_fb = par[fbr, 0] != 0.0
     fbb = int(par[fbr, 1]) if has_fb else 0
     hist = np.zeros((3, n_steps + 2 if has_fb else 2))
@@ -312,14 +361,16 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
     abort_index = -1
     abort_value = 0.0
     # initial modes: bodies at rest stick or break away, contacts already closed
-    for i in range(nb):
-        if modes[i] != LOCKED:
-            modes[i] = -1 if y[nb + i] < 0 else 1
+    if not resume:
+        for i in range(nb):
+            if modes[i] != LOCKED:
+                modes[i] = -1 if y[nb + i] < 0 else 1
     for _ in range(3):
         _forces(0.0, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
         _resolve(y, nb, modes, par, work, counts, jump)
-    counts[0] = 0
-    counts[1] = 0
+    if not resume:
+        counts[0] = 0
+        counts[1] = 0
     for step in range(n_steps + 1):
         t = step * h
         if has_fb:
@@ -351,11 +402,12 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
             stored = 0.0
             for j in range(nl):
                 r = nb + j
-                if par[r, 0] == LINK_BACKLASH and modes[r] != 0:
+                if par[r, 0] >= LINK_BACKLASH and modes[r] != 0:
                     rel = y[j] - y[j + 1]
                     d = rel - par[r, 3] if modes[r] > 0 else -par[r, 4] - rel
                     stored += 0.5 * par[r, 1] * d * d
             e_out[4, o] = stored
+            e_out[5, o] = jump[1]
         if step == n_steps:
             break
         # advance one grid step, splitting it at every event
@@ -428,7 +480,58 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
                 break
         if status != OK:
             break
-    return x_out, v_out, cmd_out, e_out, counts, status, abort_index, abort_value
+    return x_out, v_out, cmd_out, e_out, counts, status, abort_index, abort_value, modes
+
+
+@njit(cache=True)
+def _batch_one(r, out, y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
+               max_events):
+    """Run :func:`drive_kernel` for run ``r`` of a batch and store it in ``out``."""
+    x, v, c, e, cnt, st, ai, av, _m = drive_kernel(
+        y0s[r], modes0s[r], pars[r], inps[r], abort_limits[r], fs_in, n_out, n_subs[r],
+        max_events, False, np.zeros(2))
+    out[0][r] = x
+    out[1][r] = v
+    out[2][r] = c
+    out[3][r] = e
+    out[4][r] = cnt
+    out[5][r] = st
+    out[6][r] = ai
+    out[7][r] = av
+
+
+@njit(cache=True)
+def _batch_alloc(n, nb, n_out):
+    return (np.empty((n, nb, n_out)), np.empty((n, nb, n_out)), np.empty((n, n_out)),
+            np.empty((n, 6, n_out)), np.zeros((n, 2), dtype=np.int64),
+            np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.zeros(n))
+
+
+@njit(cache=True)
+def drive_batch_kernel(y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
+                       max_events):
+    """Run :func:`drive_kernel` for every run ``r`` (same number of bodies) in one call.
+
+    Returns stacked (x, v, cmd, energy, counts, status, abort_index, abort_value).
+    """
+    n = pars.shape[0]
+    out = _batch_alloc(n, (modes0s.shape[1] + 1) // 2, n_out)
+    for r in range(n):
+        _batch_one(r, out, y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
+                   max_events)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def drive_batch_kernel_parallel(y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
+                                max_events):
+    """:func:`drive_batch_kernel` with the runs spread over numba's threads."""
+    n = pars.shape[0]
+    out = _batch_alloc(n, (modes0s.shape[1] + 1) // 2, n_out)
+    for r in prange(n):
+        _batch_one(r, out, y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
+                   max_events)
+    return out
 
 
 # --------------------------------------------------------------------------- exact 1-DOF

@@ -17,6 +17,8 @@ then override single feedback fields) or lists the bodies and links::
     gap_plus = 0.02     # [rad]
     gap_minus = 0.02    # [rad]
     k = 100.0           # contact stiffness [N·m/rad]
+    # contact = "restitution"   # optional Newton impact instead of Kelvin-Voigt:
+    # restitution = 0.5         # coefficient e [-]; rest_velocity [rad/s] optional
 
     [feedback]
     P = 5.0             # [N·m/rad]
@@ -61,7 +63,8 @@ _TOP_KEYS = ("preset", "body", "link", "feedback", "run")
 _BODY_KEYS = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "fs_mean", "fs_delta",
               "locked")
 _LINK_KEYS = {"shaft": ("type", "k", "c"),
-              "backlash": ("type", "gap_plus", "gap_minus", "k", "c", "allow_tension"),
+              "backlash": ("type", "gap_plus", "gap_minus", "k", "c", "allow_tension",
+                           "contact", "restitution", "rest_velocity"),
               "none": ("type",)}
 _FEEDBACK_KEYS = ("P", "D", "delay", "body", "reference", "saturation", "abort_limit")
 _RUN_KEYS = ("duration", "fs", "x0", "v0", "torque", "method", "units")
@@ -138,7 +141,7 @@ def _values(table: dict, where: str) -> dict:
             if not isinstance(value, bool):
                 raise _fail(f"{where}.{key}", f"must be true or false; got {value!r}")
             out[key] = value
-        elif key == "type":
+        elif key in ("type", "contact"):
             out[key] = value
         elif key == "body":
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:

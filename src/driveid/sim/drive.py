@@ -16,12 +16,28 @@ and ``j`` back; ``δ = x_j - x_{j+1}``):
 
 * :class:`ShaftLink` — compliant shaft ``f = k δ + c δ'`` (§2.1.3);
 * :class:`BacklashLink` — deadzone ``-gap_minus < δ < gap_plus`` with a Kelvin–Voigt
-  contact beyond it (2.27-2.29), without tension by default (``driveid.models.backlash``).
+  contact beyond it (2.27-2.29), without tension by default (``driveid.models.backlash``);
+  or, with ``contact="restitution"``, an instantaneous Newton impact at the gap edge
+  (``v_rel' = -e v_rel``, momentum kept, loss ``½ μ (1 - e²) v_rel²``). Impacts slower
+  than ``rest_velocity`` close the compliant contact instead (resting contact), which
+  ends the Zeno sequence of ever smaller bounces under a steady push.
 
-Feedback (:class:`PDFeedback`): ``τ = P (r - x_b(t - Δ)) - D x_b'(t - Δ)`` with a pure delay
-read from the history of past states (cubic Hermite interpolation, not a Padé
-approximation), saturation at ``±saturation`` and a safety abort when ``|τ|`` before
-saturation exceeds ``abort_limit``.
+Feedback, one of:
+
+* :class:`PDFeedback`: ``τ = P (r - x_b(t - Δ)) - D x_b'(t - Δ)`` with a pure delay read
+  from the history of past states (cubic Hermite interpolation, not a Padé approximation),
+  saturation at ``±saturation`` and a safety abort when ``|τ|`` before saturation exceeds
+  ``abort_limit``;
+* a controller callback ``controller(t, x, v) -> torque`` of :func:`simulate_drive`,
+  sampled at ``control_rate`` with a zero-order hold (as a digital controller is), an
+  optional transport delay of whole periods, saturation and abort: the compiled kernel
+  runs one control period at a time with the held torque.
+
+:func:`driveid.sim.batch.simulate_drive_batch` runs many parameter sets in one compiled call
+(Monte Carlo).
+A body with dynamic (LuGre) friction, ``BodyParams.lugre``, or an electrical motor model,
+``DriveParams.motor``, is simulated by the smooth integrator ``driveid.sim._smooth``
+instead (:func:`simulate_drive` delegates).
 
 Method: fixed-step classical Runge–Kutta (order 4) on a grid that divides the output
 interval; every mode switch (velocity zero, breakaway, contact entry and exit) is located
@@ -42,12 +58,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from driveid.errors import ParameterError, SimulationError
 from driveid.io.record import Record
 from driveid.sim import _kernels as _k
+
+if TYPE_CHECKING:  # imported lazily at run time (validation), see BodyParams, DriveParams
+    from driveid.models.dynamic_friction import LuGreParams
+    from driveid.models.motor import MotorAmplifier
 
 __all__ = [
     "BodyParams",
@@ -56,9 +77,7 @@ __all__ = [
     "PDFeedback",
     "DriveParams",
     "DriveResult",
-    "FreeDecayBatch",
     "simulate_drive",
-    "simulate_free_decay_batch",
 ]
 
 
@@ -92,6 +111,10 @@ class BodyParams:
         takes the kinetic value. The band must enclose the kinetic band.
     locked : bool
         True: the body is clamped and never moves (a locked axis of the test bed).
+    lugre : driveid.models.dynamic_friction.LuGreParams or None
+        Dynamic (LuGre) friction on this body instead of the static map: then c_mean,
+        c_delta, fk_mean, fk_delta must be 0 and fs_mean, fs_delta None (simulated by the
+        smooth integrator ``driveid.sim._smooth``).
     """
 
     J: float
@@ -103,10 +126,26 @@ class BodyParams:
     fs_mean: float | None = None
     fs_delta: float | None = None
     locked: bool = False
+    lugre: LuGreParams | None = None
 
     def __post_init__(self) -> None:
         for name in ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta"):
             _finite("BodyParams", name, getattr(self, name))
+        if self.lugre is not None:
+            from driveid.models.dynamic_friction import LuGreParams
+
+            _require(isinstance(self.lugre, LuGreParams),
+                     "BodyParams.lugre must be a LuGreParams or None", self.lugre)
+            static = [getattr(self, n) for n in ("c_mean", "c_delta", "fk_mean", "fk_delta",
+                                                   "fs_mean", "fs_delta")]
+            # fs_* may come back as 0.0 from dataclasses.replace of a filled instance
+            if any(v not in (None, 0.0) for v in static):
+                raise ParameterError(
+                    "choose one friction model: with BodyParams.lugre set, c_mean, c_delta, "
+                    "fk_mean, fk_delta must be 0 and fs_mean, fs_delta None; got "
+                    f"c_mean={self.c_mean}, c_delta={self.c_delta}, fk_mean={self.fk_mean}, "
+                    f"fk_delta={self.fk_delta}, fs_mean={self.fs_mean}, "
+                    f"fs_delta={self.fs_delta}")
         _require(self.J > 0, "BodyParams.J must be positive [kg·m²]", self.J)
         _require(self.K >= 0, "BodyParams.K must be >= 0 [N·m/rad]", self.K)
         _require(self.fk_mean >= 0, "BodyParams.fk_mean must be >= 0 [N·m]", self.fk_mean)
@@ -151,7 +190,7 @@ class ShaftLink:
         _require(_finite("ShaftLink", "c", self.c) >= 0, "ShaftLink.c must be >= 0", self.c)
 
     def _row(self) -> list[float]:
-        return [_k.LINK_SHAFT, self.k, self.c, 0.0, 0.0, 0.0]
+        return [_k.LINK_SHAFT, self.k, self.c, 0.0, 0.0, 0.0, 0.0, 0.0]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -170,6 +209,19 @@ class BacklashLink:
     allow_tension : bool
         False (default): the contact never pulls, it opens when ``k δ + c δ'`` reaches zero
         (Modelica ElastoBacklash); True: the thesis's linear contact, open when ``δ = 0``.
+    contact : {"viscoelastic", "restitution"}
+        ``"viscoelastic"`` (default): the Kelvin–Voigt contact above. ``"restitution"``: an
+        instantaneous Newton impact at the gap edge, ``v_rel' = -e v_rel`` with momentum
+        kept (``v1' = v1 - (1+e) m2/(m1+m2) v_rel``, ``v2' = v2 + (1+e) m1/(m1+m2) v_rel``;
+        a locked body has infinite inertia), losing ``½ μ (1 - e²) v_rel²`` [J],
+        ``μ = m1 m2/(m1+m2)``.
+    restitution : float or None
+        Coefficient of restitution e [-], 0 <= e <= 1; required with ``"restitution"``.
+    rest_velocity : float
+        Resting-contact rule of ``"restitution"`` [rad/s], > 0: an impact slower than this
+        (the tail of a Zeno sequence of bounces under a steady push) closes the compliant
+        ``k``, ``c`` contact instead, so the bodies move together until its force would
+        become tensile, then separate (default 1e-4).
     """
 
     gap_plus: float
@@ -177,6 +229,9 @@ class BacklashLink:
     k: float
     c: float = 0.0
     allow_tension: bool = False
+    contact: str = "viscoelastic"
+    restitution: float | None = None
+    rest_velocity: float = 1e-4
 
     def __post_init__(self) -> None:
         for name in ("gap_plus", "gap_minus", "c"):
@@ -184,10 +239,27 @@ class BacklashLink:
                      f"BacklashLink.{name} must be >= 0", getattr(self, name))
         _require(_finite("BacklashLink", "k", self.k) > 0, "BacklashLink.k must be positive",
                  self.k)
+        _require(self.contact in ("viscoelastic", "restitution"),
+                 'BacklashLink.contact must be "viscoelastic" or "restitution"', self.contact)
+        if self.contact == "restitution":
+            _require(self.restitution is not None
+                     and 0.0 <= _finite("BacklashLink", "restitution", self.restitution) <= 1.0,
+                     "BacklashLink.restitution must be in [0, 1] with contact=\"restitution\"",
+                     self.restitution)
+            _require(not self.allow_tension, "a restitution contact cannot pull; pass "
+                     "allow_tension=False", self.allow_tension)
+            _require(_finite("BacklashLink", "rest_velocity", self.rest_velocity) > 0,
+                     "BacklashLink.rest_velocity must be positive [rad/s]", self.rest_velocity)
+        else:
+            _require(self.restitution is None, "BacklashLink.restitution needs "
+                     'contact="restitution"', self.restitution)
 
     def _row(self) -> list[float]:
+        if self.contact == "restitution":
+            return [_k.LINK_IMPACT, self.k, self.c, self.gap_plus, self.gap_minus, 0.0,
+                    float(self.restitution), self.rest_velocity]
         return [_k.LINK_BACKLASH, self.k, self.c, self.gap_plus, self.gap_minus,
-                float(self.allow_tension)]
+                float(self.allow_tension), 0.0, 0.0]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -246,11 +318,16 @@ class DriveParams:
         connection.
     feedback : PDFeedback or None
         Position feedback (default none).
+    motor : driveid.models.motor.MotorAmplifier or None
+        Electrical motor/amplifier on the feedback body (body 0 without feedback): the
+        feedback or external command becomes the amplifier input [V or A, per the model]
+        (simulated by the smooth integrator ``driveid.sim._smooth``).
     """
 
     bodies: tuple
     links: tuple = ()
     feedback: PDFeedback | None = None
+    motor: MotorAmplifier | None = None
 
     def __post_init__(self) -> None:
         bodies, links = tuple(self.bodies), tuple(self.links)
@@ -270,6 +347,20 @@ class DriveParams:
             _require(fb.body < len(bodies), "PDFeedback.body must index a body", fb.body)
             _require(not bodies[fb.body].locked, "the feedback body must not be locked",
                      fb.body)
+        if self.motor is not None:
+            try:  # lazy: sim imports models, and the motor model is optional
+                from driveid.models.motor import MotorAmplifier
+            except ImportError:  # pragma: no cover - only while the model is missing
+                raise ParameterError("DriveParams.motor needs driveid.models.motor."
+                                     "MotorAmplifier, which is not available") from None
+            _require(isinstance(self.motor, MotorAmplifier),
+                     "DriveParams.motor must be a driveid.models.motor.MotorAmplifier or None",
+                     self.motor)
+
+    @property
+    def smooth(self) -> bool:
+        """True if a body has LuGre friction or a motor model is set (smooth integrator)."""
+        return self.motor is not None or any(b.lugre is not None for b in self.bodies)
 
     @property
     def n_bodies(self) -> int:
@@ -281,20 +372,28 @@ class DriveParams:
 class DriveResult:
     """Sampled response of :func:`simulate_drive`.
 
+    Built by keyword with every field below (other simulators of the package, e.g. the
+    smooth integrator ``driveid.sim._smooth``, return it too): ``DriveResult(t=, x=, v=,
+    command=, energy=, n_mode_switches=, n_impacts=, aborted=, abort_reason=, abort_time=,
+    params=)``.
+
     Attributes
     ----------
     t : ndarray, shape (n,)
         Output times [s].
     x, v : ndarray, shape (n_bodies, n)
         Positions [rad] and velocities [rad/s]; NaN after an abort.
-    command : ndarray, shape (n,)
-        Saturated feedback command [N·m] (zeros without feedback).
+    command : ndarray, shape (n,) or (n_bodies, n)
+        Saturated feedback or controller command [N·m] (zeros without feedback); shape
+        (n_bodies, n) when a controller callback returns one torque per body.
     energy : dict of str to ndarray, shape (n,)
         ``input`` (work of external torques and command) [J], ``dissipated`` (friction,
-        viscous, shaft and contact damping, contact release) [J], ``kinetic``,
+        viscous, shaft and contact damping, contact release, impacts) [J], ``kinetic``,
         ``potential`` (ground springs, shafts, closed contacts) [J], ``contact_release``
-        (the part of ``dissipated`` lost when no-tension contacts open) [J] and
-        ``initial`` (scalar) [J].
+        (the part of ``dissipated`` lost when no-tension contacts open) [J], ``impact``
+        (the part lost in restitution impacts) [J] and ``initial`` (scalar) [J]. A
+        simulator may add keys; the balance ``initial + input = kinetic + potential +
+        dissipated`` must hold.
     n_mode_switches : int
         Stick, breakaway and reversal transitions of the bodies [-].
     n_impacts : int
@@ -337,8 +436,9 @@ class DriveResult:
         keep = np.isfinite(self.x[body])
         meta = {"source": "driveid.sim.simulate_drive", "body": body,
                 "units": {"x": "rad", "v": "rad/s", "u": "N·m"}}
+        u = self.command if self.command.ndim == 1 else self.command[body]
         return Record(t=self.t[keep], x=self.x[body][keep], v=self.v[body][keep],
-                      u=self.command[keep], meta=meta, max_jitter=None)
+                      u=u[keep], meta=meta, max_jitter=None)
 
 
 def _highest_rate(params: DriveParams) -> float:
@@ -390,8 +490,14 @@ def simulate_drive(
     max_step: float | None = None,
     max_events_per_step: int = 200,
     method: str = "auto",
+    controller=None,
+    control_rate: float | None = None,
+    controller_delay: int = 0,
+    controller_body: int = 0,
+    saturation: float = math.inf,
+    abort_limit: float = math.inf,
 ) -> DriveResult:
-    """Simulate the lumped drive with friction, backlash, shafts, locks and delayed PD feedback.
+    """Simulate the lumped drive with friction, backlash, shafts, locks and feedback.
 
     Parameters
     ----------
@@ -415,9 +521,28 @@ def simulate_drive(
     max_events_per_step : int
         Guard against chattering (Zeno) switching inside one step.
     method : {"auto", "rk4", "exact"}
-        ``"exact"``: the piecewise closed form of :func:`simulate_free_decay_batch`, for one
-        free body with ``K > 0``, no feedback and a constant torque; ``"rk4"``: the event-
-        located integrator; ``"auto"`` (default) takes ``"exact"`` where it applies.
+        ``"exact"``: the piecewise closed form of
+        :func:`driveid.sim.batch.simulate_free_decay_batch`, for one free body with
+        ``K > 0``, no feedback and a constant torque; ``"rk4"``: the event-located
+        integrator; ``"auto"`` (default) takes ``"exact"`` where it applies.
+    controller : callable, optional
+        Sampled-data controller ``controller(t, x, v) -> torque`` called every
+        ``1/control_rate`` s with the time [s] and copies of the sampled positions [rad] and
+        velocities [rad/s], shape (n_bodies,); it returns a scalar torque [N·m] on
+        ``controller_body`` or an array (n_bodies,). Excludes ``params.feedback``.
+    control_rate : float, optional
+        Controller sampling rate [Hz]; required with ``controller``; ``fs/control_rate`` or
+        ``control_rate/fs`` must be an integer.
+    controller_delay : int
+        Transport delay of the controller in whole control periods [-], >= 0: the command
+        computed at sample k acts from sample k + controller_delay on (zero before).
+    controller_body : int
+        Body that receives a scalar controller torque (default 0, the motor).
+    saturation : float
+        Controller command limit [N·m], > 0 (default inf).
+    abort_limit : float
+        Safety abort when ``|torque|`` from the controller, before saturation, exceeds it
+        [N·m], > 0 (default inf).
 
     Returns
     -------
@@ -429,13 +554,28 @@ def simulate_drive(
     ParameterError
         If an argument is out of range or of the wrong shape.
     SimulationError
-        If more than ``max_events_per_step`` switches happen inside one step.
+        If more than ``max_events_per_step`` switches happen inside one step, or the
+        controller returns a non-finite torque.
 
     Notes
     -----
     Energy balance closed by the result: ``initial + input = kinetic + potential +
     dissipated``; a contact that opens (no-tension rule) with residual penetration ``δ``
-    loses its stored ``k δ²/2``, booked as dissipated.
+    loses its stored ``k δ²/2``, booked as dissipated, and so is the loss of restitution
+    impacts.
+
+    The controller callback is sampled with a zero-order hold, as on real hardware (a
+    digital controller reads the encoders, computes, and holds its DAC output until the
+    next tick): the command is constant over each control period, so the compiled kernel
+    integrates every period without Python in its loop, and a continuous callback would
+    need a Python call per RK4 stage. A ZOH of period T acts like a delay of about T/2:
+    to compare with continuous feedback, choose ``control_rate`` well above the loop's
+    bandwidth.
+
+    A body with ``lugre`` friction or a ``params.motor`` runs on the smooth integrator
+    ``driveid.sim._smooth.simulate_smooth`` (with ``duration``, ``fs``, ``x0``, ``v0``,
+    ``torque``, ``reference``; not combined with ``method="exact"``, a controller or a
+    restitution contact).
 
     Examples
     --------
@@ -444,16 +584,64 @@ def simulate_drive(
     >>> exact = simulate_drive(drive, duration=1.0, x0=[1.0], method="exact")
     >>> bool(abs(rk4.x - exact.x).max() < 1e-9), rk4.n_mode_switches
     (True, 1)
+    >>> held = simulate_drive(drive, duration=1.0, x0=[1.0], controller=lambda t, x, v: 0.0,
+    ...                       control_rate=100.0)
+    >>> bool(abs(held.x - rk4.x).max() < 1e-12)
+    True
     """
     if not isinstance(params, DriveParams):
         raise ParameterError(f"params must be a DriveParams; got {type(params).__name__}")
+    _require(method in ("auto", "rk4", "exact"), 'method must be "auto", "rk4" or "exact"',
+             method)
+    if params.smooth:
+        impact = any(isinstance(ln, BacklashLink) and ln.contact == "restitution"
+                     for ln in params.links)
+        if method == "exact" or controller is not None or impact:
+            raise ParameterError(
+                "LuGre friction and the motor model run on the smooth integrator, which "
+                'does not take method="exact", a controller callback or a restitution '
+                'contact; use method="auto", params.feedback, contact="viscoelastic"')
+        from driveid.sim._smooth import simulate_smooth
+
+        return simulate_smooth(params, duration=duration, fs=fs, x0=x0, v0=v0, torque=torque,
+                               reference=reference)
+    if controller is not None:
+        _require(reference is None, "reference is for params.feedback; a controller "
+                 "callback computes its own reference", "an array")
+        return _simulate_controlled(
+            params, duration, fs, x0, v0, torque, max_step, max_events_per_step, method,
+            controller, control_rate, controller_delay, controller_body, saturation,
+            abort_limit)
+    _require(control_rate is None, "control_rate needs a controller callback", control_rate)
+    run = _prepare(params, duration, fs, x0, v0, torque, reference, max_step,
+                   max_events_per_step)
+    nb, torque, fb = params.n_bodies, run["torque"], params.feedback
+    exact_ok = (nb == 1 and not run["locked"][0] and params.bodies[0].K > 0 and fb is None
+                and np.all(torque == torque[:, :1]))
+    if method == "exact" and not exact_ok:
+        raise ParameterError(
+            'method="exact" needs one unlocked body with K > 0, no feedback and a constant '
+            f"torque; use method=\"rk4\"; got {nb} bodies, feedback={fb is not None}"
+        )
+    if method != "rk4" and exact_ok:
+        return _simulate_exact(params, duration, fs, run["x0"], run["v0"],
+                               float(torque[0, 0]))
+    out = _k.drive_kernel(run["y0"], run["modes0"], run["par"], run["inp"],
+                          run["abort_limit"], float(fs), run["n_out"], run["n_sub"],
+                          max_events_per_step, False, np.zeros(2))
+    return _finish(params, run, *out[:8], max_events_per_step)
+
+
+def _prepare(params, duration, fs, x0, v0, torque, reference, max_step, max_events) -> dict:
+    """Validate the run and build the kernel's inputs (see :func:`_k.drive_kernel`)."""
     _require(isinstance(duration, (int, float)) and 0 < duration < math.inf,
              "duration must be positive and finite [s]", duration)
     _require(isinstance(fs, (int, float)) and 0 < fs < math.inf,
              "fs must be positive; pass the output sampling rate in Hz", fs)
+    _require(isinstance(max_events, int) and max_events > 0,
+             "max_events_per_step must be a positive int", max_events)
     nb = params.n_bodies
     n_out = int(math.floor(duration * fs + 1e-9)) + 1
-    t = np.arange(n_out) / fs
     x0 = _input_grid(x0, "x0", None, nb)
     v0 = _input_grid(v0, "v0", None, nb)
     locked = np.array([b.locked for b in params.bodies])
@@ -464,17 +652,6 @@ def simulate_drive(
     if reference is None:
         reference = 0.0 if fb is None else fb.reference
     reference = _input_grid(reference, "reference", None, n_out)[None, :]
-    exact_ok = (nb == 1 and not locked[0] and params.bodies[0].K > 0 and fb is None
-                and np.all(torque == torque[:, :1]))
-    _require(method in ("auto", "rk4", "exact"), 'method must be "auto", "rk4" or "exact"',
-             method)
-    if method == "exact" and not exact_ok:
-        raise ParameterError(
-            'method="exact" needs one unlocked body with K > 0, no feedback and a constant '
-            f"torque; use method=\"rk4\"; got {nb} bodies, feedback={fb is not None}"
-        )
-    if method != "rk4" and exact_ok:
-        return _simulate_exact(params, duration, fs, x0, v0, float(torque[0, 0]))
     rate = _highest_rate(params)
     if max_step is None:
         max_step = 0.2 / rate if rate > 0 else 1.0 / fs
@@ -482,29 +659,30 @@ def simulate_drive(
              "max_step must be positive [s]", max_step)
     if fb is not None and fb.delay > 0:
         max_step = min(max_step, fb.delay)
-    n_sub = max(1, math.ceil((1.0 / fs) / max_step - 1e-9))
-    _require(isinstance(max_events_per_step, int) and max_events_per_step > 0,
-             "max_events_per_step must be a positive int", max_events_per_step)
-
     rows = [b._row() for b in params.bodies]
-    rows += [[0.0] * 8 if ln is None else ln._row() + [0.0, 0.0] for ln in params.links]
-    abort_limit = math.inf
-    if fb is None:
-        rows.append([0.0] * 8)
-    else:
-        rows.append([1.0, fb.body, fb.P, fb.D, fb.delay, fb.saturation, 0.0, 0.0])
-        abort_limit = fb.abort_limit
-    par = np.array(rows, dtype=float)
-    inp = np.ascontiguousarray(np.vstack([torque, reference]))
-    y0 = np.concatenate([x0, v0, np.zeros(3)])
-    modes0 = np.concatenate([np.where(locked, _k.LOCKED, 1), np.zeros(nb - 1)]).astype(np.int64)
-    x, v, cmd, e, counts, status, abort_index, abort_value = _k.drive_kernel(
-        y0, modes0, par, inp, float(abort_limit), float(fs), n_out, n_sub,
-        max_events_per_step)
-    h = 1.0 / (fs * n_sub)
+    rows += [[0.0] * 8 if ln is None else ln._row() for ln in params.links]
+    rows.append([0.0] * 8 if fb is None else
+                [1.0, fb.body, fb.P, fb.D, fb.delay, fb.saturation, 0.0, 0.0])
+    return {
+        "t": np.arange(n_out) / fs, "n_out": n_out, "x0": x0, "v0": v0, "locked": locked,
+        "torque": torque, "fs": float(fs), "max_step": max_step,
+        "n_sub": max(1, math.ceil((1.0 / fs) / max_step - 1e-9)),
+        "par": np.array(rows, dtype=float),
+        "inp": np.ascontiguousarray(np.vstack([torque, reference])),
+        "y0": np.concatenate([x0, v0, np.zeros(3)]),
+        "modes0": np.concatenate([np.where(locked, _k.LOCKED, 1),
+                                  np.zeros(nb - 1)]).astype(np.int64),
+        "abort_limit": math.inf if fb is None else float(fb.abort_limit),
+    }
+
+
+def _finish(params, run, x, v, cmd, e, counts, status, abort_index, abort_value,
+            max_events) -> DriveResult:
+    """Turn the kernel's outputs into a :class:`DriveResult` (or raise on chattering)."""
+    h = 1.0 / (run["fs"] * run["n_sub"])
     if status == _k.TOO_MANY_EVENTS:
         raise SimulationError(
-            f"more than max_events_per_step={max_events_per_step} mode switches in the step "
+            f"more than max_events_per_step={max_events} mode switches in the step "
             f"at t={abort_index * h:.6g} s (chattering); add damping, reduce max_step or raise "
             "max_events_per_step"
         )
@@ -513,15 +691,122 @@ def simulate_drive(
     if aborted:
         abort_time = abort_index * h
         reason = (f"|command| = {abs(abort_value):.6g} N·m before saturation exceeded "
-                  f"abort_limit={abort_limit:g} N·m at t={abort_time:.6g} s")
-    energy = _energy(params, x, v, e, x0, v0)
-    return DriveResult(t=t, x=x, v=v, command=cmd,
-                       energy=energy, n_mode_switches=int(counts[0]), n_impacts=int(counts[1]),
+                  f"abort_limit={run['abort_limit']:g} N·m at t={abort_time:.6g} s")
+    energy = _energy(params, x, v, e, run["x0"], run["v0"])
+    return DriveResult(t=run["t"], x=x, v=v, command=cmd, energy=energy,
+                       n_mode_switches=int(counts[0]), n_impacts=int(counts[1]),
                        aborted=aborted, abort_reason=reason, abort_time=abort_time,
                        params=params)
 
 
+def _simulate_controlled(params, duration, fs, x0, v0, torque, max_step, max_events, method,
+                         controller, control_rate, delay, body, saturation, abort_limit):
+    """Sampled-data (ZOH) controller: one compiled kernel call per control period."""
+    if params.feedback is not None:
+        raise ParameterError("pass either params.feedback or a controller callback, not both; "
+                             "set feedback=None to use the callback")
+    _require(callable(controller), "controller must be callable as controller(t, x, v)",
+             controller)
+    _require(method != "exact", 'a controller needs method="rk4" or "auto"', method)
+    _require(isinstance(control_rate, (int, float)) and 0 < control_rate < math.inf,
+             "control_rate must be a positive rate [Hz] with a controller", control_rate)
+    _require(isinstance(delay, int) and delay >= 0,
+             "controller_delay must be a whole number of control periods >= 0", delay)
+    _require(isinstance(body, int) and 0 <= body < params.n_bodies
+             and not params.bodies[body].locked,
+             "controller_body must index an unlocked body", body)
+    for name, value in (("saturation", saturation), ("abort_limit", abort_limit)):
+        _require(isinstance(value, (int, float)) and value > 0 and not math.isnan(value),
+                 f"{name} must be positive [N·m] (inf: none)", value)
+    run = _prepare(params, duration, fs, x0, v0, torque, None, max_step, max_events)
+    hi, lo = max(fs, control_rate), min(fs, control_rate)
+    ratio = round(hi / lo)
+    if abs(hi / lo - ratio) > 1e-9 * ratio:
+        raise ParameterError(
+            f"fs/control_rate or control_rate/fs must be an integer; got fs={fs}, "
+            f"control_rate={control_rate}; choose e.g. control_rate={fs}")
+    r_out = ratio if control_rate > fs else 1  # fine samples per output sample
+    r_c = 1 if control_rate > fs else ratio  # fine samples per control period
+    fs_in = float(fs * r_out)
+    nb, n_out = params.n_bodies, run["n_out"]
+    n_fine = (n_out - 1) * r_out + 1
+    n_sub = max(1, math.ceil((1.0 / fs_in) / run["max_step"] - 1e-9))
+    torque = run["torque"]
+    if r_out > 1:  # the kernel interpolates linearly: the finer grid keeps every knot
+        tf = np.arange(n_fine) / fs_in
+        torque = np.array([np.interp(tf, run["t"], row) for row in torque])
+    x = np.full((nb, n_fine), np.nan)
+    v = np.full((nb, n_fine), np.nan)
+    e = np.full((6, n_fine), np.nan)
+    cmd = np.full((nb, n_fine), np.nan)
+    y = run["y0"].copy()
+    modes = run["modes0"].copy()
+    jump = np.zeros(2)
+    counts = np.zeros(2, dtype=np.int64)
+    queue = [np.zeros(nb)] * delay
+    applied = np.zeros(nb)
+    par = run["par"]
+    vector = False
+    status, abort_index, abort_value = _k.OK, -1, 0.0
+    for k in range(math.ceil((n_fine - 1) / r_c)):
+        s0 = k * r_c
+        t_k = s0 / fs_in
+        raw = np.asarray(controller(t_k, y[:nb].copy(), y[nb:2 * nb].copy()), dtype=float)
+        if raw.shape not in ((), (nb,)):
+            raise ParameterError(f"controller must return a scalar or shape ({nb},) torque "
+                                 f"[N·m]; got shape {raw.shape} at t={t_k:.6g} s")
+        if not np.all(np.isfinite(raw)):
+            raise SimulationError(f"controller returned a non-finite torque {raw!r} at "
+                                  f"t={t_k:.6g} s")
+        if np.max(np.abs(raw)) > abort_limit:
+            status, abort_index, abort_value = _k.ABORTED, s0 * n_sub, float(
+                raw.flat[np.argmax(np.abs(raw))])
+            break
+        vector = vector or raw.ndim == 1
+        u = np.zeros(nb)
+        if raw.ndim:
+            u[:] = np.clip(raw, -saturation, saturation)
+        else:
+            u[body] = min(max(float(raw), -saturation), saturation)
+        queue.append(u)
+        applied = queue.pop(0)
+        s1 = min(s0 + r_c, n_fine - 1)
+        inp = np.vstack([torque[:, s0:s1 + 1] + applied[:, None], np.zeros((1, s1 - s0 + 1))])
+        xk, vk, _, ek, ck, st, ai, _, modes = _k.drive_kernel(
+            y, modes, par, inp, math.inf, fs_in, s1 - s0 + 1, n_sub, max_events, k > 0, jump)
+        counts += ck
+        if st != _k.OK:
+            status, abort_index = st, s0 * n_sub + ai
+            break
+        x[:, s0:s1], v[:, s0:s1], e[:, s0:s1] = xk[:, :-1], vk[:, :-1], ek[:, :-1]
+        cmd[:, s0:s1] = applied[:, None]
+        y = np.concatenate([xk[:, -1], vk[:, -1], ek[:3, -1]])
+        jump = np.array([ek[3, -1], ek[5, -1]])
+    if status == _k.OK:  # the last sample holds the last command
+        x[:, -1], v[:, -1], cmd[:, -1] = y[:nb], y[nb:2 * nb], applied
+        e[:3, -1], e[3, -1], e[5, -1] = y[2 * nb:], jump[0], jump[1]
+        e[4, -1] = _stored_contacts(params, y[:nb], modes)
+    sl = slice(None, None, r_out)
+    run = run | {"fs": fs_in, "n_sub": n_sub, "abort_limit": abort_limit}
+    result = _finish(params, run, x[:, sl], v[:, sl], cmd[:, sl] if vector else cmd[body, sl],
+                     e[:, sl], counts, status, abort_index, abort_value, max_events)
+    return result
+
+
+def _stored_contacts(params, x, modes) -> float:
+    """Energy [J] held by the closed compliant contacts at positions x."""
+    stored = 0.0
+    for j, ln in enumerate(params.links):
+        m = modes[params.n_bodies + j]
+        if isinstance(ln, BacklashLink) and m != 0:
+            d = x[j] - x[j + 1] - ln.gap_plus if m > 0 else -ln.gap_minus - x[j] + x[j + 1]
+            stored += 0.5 * ln.k * d * d
+    return stored
+
+
 def _simulate_exact(params, duration, fs, x0, v0, u0) -> DriveResult:
+    from driveid.sim.batch import simulate_free_decay_batch  # batch builds on this module
+
     b = params.bodies[0]
     batch = simulate_free_decay_batch(
         J=b.J, K=b.K, c_mean=b.c_mean, c_delta=b.c_delta, fk_mean=b.fk_mean,
@@ -534,7 +819,8 @@ def _simulate_exact(params, duration, fs, x0, v0, u0) -> DriveResult:
     work = u0 * (x[0] - x0[0])
     n_switch = int(batch.n_reversals[0])  # every velocity zero: a reversal or the final stick
     energy = {"input": work, "dissipated": initial + work - kin - pot, "kinetic": kin,
-              "potential": pot, "contact_release": np.zeros_like(work), "initial": initial}
+              "potential": pot, "contact_release": np.zeros_like(work),
+              "impact": np.zeros_like(work), "initial": initial}
     return DriveResult(t=batch.t, x=x, v=v, command=np.zeros_like(batch.t), energy=energy,
                        n_mode_switches=n_switch, n_impacts=0, aborted=False, abort_reason=None,
                        abort_time=None, params=params)
@@ -561,153 +847,6 @@ def _energy(params, x, v, e, x0, v0) -> dict:
             contact0 += 0.5 * ln.k * d * d
     # contact work minus what the closed contacts still store is dissipated (damping and
     # the release loss of the no-tension rule)
-    return {"input": e[0], "dissipated": e[1] + e[2] - e[4] + contact0,
-            "kinetic": kin, "potential": pot + e[4], "contact_release": e[3],
+    return {"input": e[0], "dissipated": e[1] + e[2] - e[4] + e[5] + contact0,
+            "kinetic": kin, "potential": pot + e[4], "contact_release": e[3], "impact": e[5],
             "initial": float(kin0[0] + pot0[0]) + contact0}
-
-
-@dataclass(frozen=True)
-class FreeDecayBatch:
-    """Exact free decays of many 1-DOF parameter sets (:func:`simulate_free_decay_batch`).
-
-    Attributes
-    ----------
-    t : ndarray, shape (n,)
-        Output times [s].
-    x : ndarray, shape (n_sets, n)
-        Positions [rad or m].
-    v : ndarray, shape (n_sets, n) or None
-        Velocities [rad/s or m/s]; None unless ``return_velocity=True``.
-    stuck_at : ndarray, shape (n_sets,)
-        Time from which each body stays stuck [s]; NaN if it is still moving at the end.
-    n_reversals : ndarray of int, shape (n_sets,)
-        Velocity zeros after the start [-].
-    """
-
-    t: np.ndarray
-    x: np.ndarray
-    v: np.ndarray | None
-    stuck_at: np.ndarray
-    n_reversals: np.ndarray
-
-
-_BATCH_FIELDS = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "fs_mean", "fs_delta")
-
-
-def simulate_free_decay_batch(
-    *,
-    J,
-    K,
-    c_mean=0.0,
-    c_delta=0.0,
-    fk_mean=0.0,
-    fk_delta=0.0,
-    fs_mean=None,
-    fs_delta=None,
-    x0,
-    v0=0.0,
-    u0=0.0,
-    duration: float,
-    fs: float = 1000.0,
-    max_reversals: int = 100_000,
-    return_velocity: bool = False,
-) -> FreeDecayBatch:
-    """Exact free decays with stiction for many parameter sets at once (Monte Carlo).
-
-    Parameters
-    ----------
-    J : array_like
-        Mass or inertia [kg or kg·m²], > 0; all parameters broadcast to ``(n_sets,)``.
-    K : array_like
-        Stiffness [N/m or N·m/rad], > 0.
-    c_mean, c_delta : array_like
-        Viscous friction ``c_mean + c_delta·sgn(x')`` [N·s/m or N·m·s/rad].
-    fk_mean, fk_delta : array_like
-        Kinetic friction ``fk_mean·sgn(x') + fk_delta`` [N or N·m]; fk_mean >= 0.
-    fs_mean, fs_delta : array_like, optional
-        Static friction band ``fs_delta ± fs_mean`` [N or N·m]; default the kinetic values.
-    x0, v0 : array_like
-        Initial position [m or rad] and velocity [m/s or rad/s].
-    u0 : array_like
-        Constant applied force [N or N·m] (default 0: free decay).
-    duration : float
-        Simulated time [s]; > 0.
-    fs : float
-        Output sampling rate [Hz]; > 0.
-    max_reversals : int
-        Bound on the segments of one run.
-    return_velocity : bool
-        Also return the velocities (twice the memory: 1000 runs of 20 s at 1 kHz are 160 MB
-        per array).
-
-    Returns
-    -------
-    FreeDecayBatch
-        Positions of every set at ``k/fs``, stick times and reversal counts.
-
-    Raises
-    ------
-    ParameterError
-        If a parameter is out of range (reported with the index of the first bad set).
-    SimulationError
-        If a run needs more than ``max_reversals`` segments.
-
-    Notes
-    -----
-    The same exact piecewise closed form as :func:`driveid.sim.simulate_free_decay`
-    (thesis 2.136-2.157), compiled; inside a segment the samples follow from the exact
-    one-sample transition matrix, so a run costs a few flops per sample.
-
-    Examples
-    --------
-    >>> b = simulate_free_decay_batch(J=1.0, K=16.0, c_mean=[0.3, 0.4], fk_mean=0.07,
-    ...                               x0=1.0, duration=5.0)
-    >>> b.x.shape
-    (2, 5001)
-    """
-    _require(isinstance(duration, (int, float)) and 0 < duration < math.inf,
-             "duration must be positive and finite [s]", duration)
-    _require(isinstance(fs, (int, float)) and 0 < fs < math.inf,
-             "fs must be positive; pass the output sampling rate in Hz", fs)
-    fk_mean_a = np.asarray(fk_mean, dtype=float)
-    fk_delta_a = np.asarray(fk_delta, dtype=float)
-    values = [J, K, c_mean, c_delta, fk_mean_a, fk_delta_a,
-              fk_mean_a if fs_mean is None else fs_mean,
-              fk_delta_a if fs_delta is None else fs_delta, x0, v0, u0]
-    try:
-        arrays = np.broadcast_arrays(*[np.atleast_1d(np.asarray(a, dtype=float))
-                                       for a in values])
-    except ValueError:
-        raise ParameterError(
-            "parameters must broadcast to one shape (n_sets,); got shapes "
-            f"{[np.shape(a) for a in values]}"
-        ) from None
-    arrays = [np.ascontiguousarray(a.ravel()) for a in arrays]
-    Ja, Ka, cm, cd, fkm, fkd, fsm, fsd, xa, va, ua = arrays
-    for name, a in zip(_BATCH_FIELDS + ("x0", "v0", "u0"), arrays, strict=True):
-        bad = ~np.isfinite(a)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise ParameterError(f"{name} must be finite; set {i} has {float(a[i])!r}")
-    for name, a, ok in (("J", Ja, Ja > 0), ("K", Ka, Ka > 0), ("fk_mean", fkm, fkm >= 0),
-                        ("fs band", fsm, (fsd + fsm >= fkd + fkm - 1e-12)
-                         & (fsd - fsm <= fkd - fkm + 1e-12))):
-        if not ok.all():
-            i = int(np.argmax(~ok))
-            rule = {"J": "positive", "K": "positive (the batch needs a spring)",
-                    "fk_mean": ">= 0",
-                    "fs band": "wide enough: fs_delta ± fs_mean must enclose fk_delta ± fk_mean"}
-            raise ParameterError(f"{name} must be {rule[name]}; set {i} has {float(a[i])!r}")
-    par = np.ascontiguousarray(np.stack([Ja, Ka, cm, cd, fkm, fkd, fsd - fsm, fsd + fsm],
-                                        axis=1))
-    n_out = int(math.floor(duration * fs + 1e-9)) + 1
-    x, v, stuck_at, n_rev, ok = _k.free_decay_batch_kernel(
-        par, xa, va, ua, float(fs), n_out, int(max_reversals), bool(return_velocity))
-    if not ok.all():
-        i = int(np.argmax(~ok))
-        raise SimulationError(
-            f"set {i} needs more than max_reversals={max_reversals} segments before "
-            f"t={duration} s; raise max_reversals or add damping/friction"
-        )
-    return FreeDecayBatch(t=np.arange(n_out) / fs, x=x, v=v if return_velocity else None,
-                          stuck_at=stuck_at, n_reversals=n_rev)
