@@ -7,7 +7,11 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.hilbert import estimate_envelope_damping, estimate_hilbert
+from driveid.identify.hilbert import (
+    _limit_cycle_phasor,
+    estimate_envelope_damping,
+    estimate_hilbert,
+)
 from driveid.io.record import Record
 
 F0 = 2.0  # natural frequency [Hz] of the synthetic single-mode records
@@ -181,6 +185,51 @@ def test_envelope_damping_pure_coulomb():
     assert est.data_used["chosen"] in ("coulomb", "combined")
     assert est.value("fk_mean") == pytest.approx(fk, rel=2e-2)
     assert est["fk_mean"].unit == "rad/s²"
+
+
+def test_limit_cycle_phasor_coulomb_limit():
+    """sigma -> 0: the envelope falls 4 d per period T_d (pure Coulomb decay, closed form)."""
+    w0 = 4.0
+    for sigma in (1e-4, 1e-3):
+        rate = sigma * _limit_cycle_phasor(sigma, w0)
+        period = 2 * np.pi / math.sqrt(w0**2 - sigma**2)
+        # the limit is reached to O(sigma / omega0) in the real part
+        assert rate.real == pytest.approx(-4 / period, rel=1e-3)
+        assert abs(rate.imag) < 1e-3 * abs(rate.real)
+
+
+def test_envelope_damping_standard_errors_match_scatter():
+    """Exact Coulomb + viscous decay with white noise: the spread over seeds vs the stderr."""
+    J, K, c, fk = 1.0, 16.0, 0.3, 0.07
+    rec = coulomb_viscous_decay(J, K, c, fk, 1.0, 14.0, 500.0)
+    z_fk, z_c = [], []
+    for seed in range(8):
+        noise = 0.003 * np.random.default_rng(seed).standard_normal(rec.t.size)
+        est = estimate_envelope_damping(Record(t=rec.t, x=rec.x + noise), mass=J)
+        z_fk.append((est.value("fk_mean") - fk) / est.stderr("fk_mean"))
+        z_c.append((est.value("c_mean") - c) / est.stderr("c_mean"))
+    rms_fk, rms_c = math.sqrt(np.mean(np.square(z_fk))), math.sqrt(np.mean(np.square(z_c)))
+    print(f"envelope z-score rms: fk {rms_fk:.2f}, c {rms_c:.2f}")
+    # honest errors give rms 1; 8 seeds put the rms within ~[0.5, 1.5]; measured 1.3 and 1.4
+    assert 0.4 < rms_fk < 2.0 and 0.4 < rms_c < 2.0
+
+
+def test_envelope_damping_rejects_two_modes():
+    t = np.arange(20000) / FS
+    x = (np.exp(-0.2 * t) * np.cos(2 * np.pi * F0 * t)
+         + 0.8 * np.exp(-0.1 * t) * np.cos(2 * np.pi * 1.45 * F0 * t))
+    with pytest.raises(IdentificationError, match="ripple_threshold"):
+        estimate_envelope_damping(Record(t=t, x=x))
+
+
+def test_envelope_damping_bad_options():
+    rec = coulomb_viscous_decay(1.0, 16.0, 0.3, 0.07, 1.0, 14.0, 500.0)
+    with pytest.raises(ParameterError, match="ripple_threshold"):
+        estimate_envelope_damping(rec, ripple_threshold=-1.0)
+    with pytest.raises(ParameterError, match="mass"):
+        estimate_envelope_damping(rec, mass=0.0)
+    with pytest.raises(IdentificationError, match="at least one period"):
+        estimate_envelope_damping(rec, trim_periods=12.0)
 
 
 def test_too_short_record():

@@ -68,6 +68,7 @@ from driveid.io.record import Record
 from driveid.signal.envelope import (
     analytic_signal,
     count_crossings,
+    cycle_phasor,
     dominant_frequency,
     longest_run,
     noise_std,
@@ -427,27 +428,125 @@ def estimate_hilbert(
                     params=params, data_used=data_used, diagnostics=diagnostics)
 
 
-def _envelope_models(period: float) -> dict[str, tuple[Any, list[str]]]:
-    """Envelope models E(t; p) of a free decay, t measured from the window start.
+_RIPPLE_HARMONICS = (-1, 1)
 
-    Exact half-cycle recurrence of a viscous + Coulomb oscillator: peaks obey
-    ``A_{n+1} = q (A_n - d) - d`` with ``d = fk/K`` and ``q = exp(-sigma T_d/2)``, whose
-    continuous interpolation is ``A + beta = (A0 + beta) exp(-sigma t)`` with
-    ``beta = d coth(sigma T_d/4)``. Within a half cycle the amplitude about the centre
-    falls from ``A_n - d`` to ``|A_{n+1}| + d``, so the period-averaged Hilbert envelope
-    follows the peak envelope ``A(t)`` itself (checked in the tests to ~0.1 d).
+
+def _limit_cycle_phasor(sigma: float, omega0: float, n: int = 4096) -> complex:
+    """Cycle phasor of the friction limit cycle per unit ``d = fk/K`` (symmetric damping).
+
+    Between two velocity reversals the motion is a damped cosine about the centre
+    ``-d sgn(v)``; the reversals are a fixed half period ``pi/omega_d`` apart whatever the
+    amplitude, so a free decay is ``x = x_p(t) + exp(-sigma t) P(t)`` with ``x_p`` and ``P``
+    of period ``T = 2 pi/omega_d``: ``x_p`` the (virtual) periodic solution of the friction
+    forcing, ``exp(-sigma t) P`` the homogeneous part. Returns twice the fundamental Fourier
+    coefficient of ``x_p`` (what :func:`~driveid.signal.envelope.cycle_phasor` gives for it)
+    with the phase of the fundamental of ``P`` removed, for ``d = 1``.
     """
-    def viscous(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-        return p[0] * np.exp(-p[1] * t)
+    wd = math.sqrt(omega0**2 - sigma**2)
+    half = math.pi / wd
+    tau = (np.arange(n) + 0.5) * half / n
+    shape = np.exp(-sigma * tau) * (np.cos(wd * tau) + sigma / wd * np.sin(wd * tau))
+    rho = math.exp(-sigma * half)
+    # half cycle with v > 0 from the minimum m0 about the centre -d; the limit cycle is
+    # half-wave symmetric, x(t + T/2) = -x(t), with m0 = d (1 + rho) / (1 - rho)
+    xp = -1.0 + (1 + rho) / (1 - rho) * shape + shape
+    hom = -shape * np.exp(sigma * tau)
+    kernel = np.exp(-1j * wd * tau)
+    # half-wave symmetry: the fundamental over a period is twice that over a half period
+    xp1, hom1 = np.mean(xp * kernel), np.mean(hom * kernel)
+    return complex(2 * xp1 * np.conj(hom1) / abs(hom1))
 
-    def coulomb(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-        return p[0] - p[1] * t
 
-    def combined(p: np.ndarray, t: np.ndarray) -> np.ndarray:
-        return (p[0] + p[2]) * np.exp(-p[1] * t) - p[2]
+#: Fewest periods in the window for fitting the non-decaying ripple terms [-].
+_DRIFT_RIPPLE_PERIODS = 4.0
 
-    return {"viscous": (viscous, ["E0", "sigma"]), "coulomb": (coulomb, ["E0", "rate"]),
-            "combined": (combined, ["E0", "sigma", "beta"])}
+
+def _phasor_basis(kind: str, s: float, tw: np.ndarray, omega: float,
+                  drift: bool) -> np.ndarray:
+    """Columns of the complex envelope models (see :func:`estimate_envelope_damping`)."""
+    ones = np.ones_like(tw)
+    decay = ones if kind == "coulomb" else np.exp(-s * tw)
+    cols = {"viscous": [decay], "coulomb": [ones, tw], "combined": [ones, decay]}[kind]
+    cols = cols + [decay * np.exp(1j * m * omega * tw) for m in _RIPPLE_HARMONICS]
+    if drift and kind != "coulomb":
+        cols = cols + [np.exp(1j * m * omega * tw) for m in _RIPPLE_HARMONICS]
+    return np.column_stack(cols).astype(complex)
+
+
+def _fit_phasor(kind: str, tw: np.ndarray, y: np.ndarray, omega: float,
+                sigma0: float, drift: bool) -> dict[str, Any]:
+    """Fit ``Y = exp(j dw t) B(sigma) c``: variable projection over (sigma, dw)."""
+    def unpack(q: np.ndarray) -> tuple[float, float]:
+        return (0.0, float(q[0])) if kind == "coulomb" else (float(q[0]), float(q[1]))
+
+    def project(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        s, dw = unpack(q)
+        yr = y * np.exp(-1j * dw * tw)
+        basis = _phasor_basis(kind, s, tw, omega, drift)
+        coef = np.linalg.lstsq(basis, yr, rcond=None)[0]
+        return yr - basis @ coef, coef
+
+    def residual(q: np.ndarray) -> np.ndarray:
+        r = project(q)[0]
+        return np.concatenate([r.real, r.imag])
+
+    span = float(tw[-1])
+    dw_scale = 0.1 / span
+    if kind == "coulomb":
+        starts, lower, scale = [[0.0]], [-np.inf], [dw_scale]
+    else:
+        starts = [[k * sigma0, 0.0] for k in (0.3, 1.0, 3.0)]
+        # below ~1e-3 / span the decay is a straight line: the Coulomb model
+        lower, scale = [1e-3 / span, -np.inf], [sigma0, dw_scale]
+    best = None
+    for q0 in starts:
+        q0 = np.maximum(q0, np.array(lower) * (1 + 1e-9))
+        fit = least_squares(residual, q0, bounds=(lower, np.inf), x_scale=scale)
+        if best is None or fit.cost < best.cost:
+            best = fit
+    s, dw = unpack(best.x)
+    r, coef = project(best.x)
+    # full Jacobian of the real-stacked residual in (nonlinear..., Re c, Im c)
+    rot = np.exp(1j * dw * tw)
+    basis = _phasor_basis(kind, s, tw, omega, drift)
+    model = rot * (basis @ coef)
+    cols = []
+    if kind != "coulomb":
+        dbasis = -tw[:, None] * basis
+        if kind == "combined":
+            dbasis[:, 0] = 0.0
+        if drift:
+            dbasis[:, -len(_RIPPLE_HARMONICS):] = 0.0  # the non-decaying ripple terms
+        cols.append(rot * (dbasis @ coef))
+    cols.append(1j * tw * model)
+    for k in range(coef.size):
+        cols += [rot * basis[:, k], 1j * rot * basis[:, k]]
+    jac = np.column_stack(cols)
+    jac = np.vstack([jac.real, jac.imag])
+    return {"sigma": s, "dw": dw, "coef": coef, "rss": float(np.vdot(r, r).real),
+            "jac": jac, "model": model,
+            "p": np.concatenate([[s] if kind != "coulomb" else [], [dw],
+                                 np.column_stack([coef.real, coef.imag]).ravel()])}
+
+
+def _crossings(x: np.ndarray, t: np.ndarray, band: float) -> tuple[float, float]:
+    """Time of the last crossing of the midline beyond ``±band`` [s] and the frequency.
+
+    The frequency [rad/s] counts whole cycles between crossings: asymmetric friction
+    offsets the centre every half cycle, so half-cycle intervals alternate but cycles don't.
+    """
+    state = np.where(x > band, 1, np.where(x < -band, -1, 0))
+    idx = np.flatnonzero(state)
+    crossings = idx[1:][np.diff(state[idx]) != 0]
+    if crossings.size < 3:
+        raise IdentificationError(
+            "the record does not oscillate enough for envelope damping separation: it needs "
+            f"at least 3 crossings of the midline beyond ±{band:.3g} (1 % of the peak or 5x "
+            f"noise); record a longer free decay; got {crossings.size}"
+        )
+    tc = t[crossings]
+    n_cycles = (tc.size - 1) // 2
+    return float(tc[-1]), 2 * np.pi * n_cycles / float(tc[2 * n_cycles] - tc[0])
 
 
 def estimate_envelope_damping(
@@ -467,31 +566,70 @@ def estimate_envelope_damping(
     mass : float, optional
         Inertia J [kg·m²] (or mass [kg]); without it ``c_mean`` and ``fk_mean`` are per unit
         inertia ([1/s] and [rad/s²] or [m/s²]).
-    trim_periods, ripple_threshold, min_snr : float
-        Valid-window options as in :func:`estimate_hilbert` [periods], [-], [-].
+    trim_periods : float
+        Dropped at the start and, while the record still oscillates there, at the end
+        [periods] (Hilbert end effects).
+    ripple_threshold : float
+        Largest allowed RMS misfit of the chosen envelope model, relative to the mean
+        envelope [-]; a larger misfit means the record is not a single-mode viscous/Coulomb
+        decay and raises :class:`~driveid.errors.IdentificationError`.
+    min_snr : float
+        Least peak-amplitude / noise ratio of the record [-].
 
     Returns
     -------
     Estimate
         ``c_mean``, ``fk_mean`` (zero without standard error when the chosen model lacks the
         term), ``omega0`` [rad/s]; ``data_used["models"]`` holds every model's parameters,
-        AIC and fitted envelope, ``data_used["chosen"]`` the one with the least AIC.
+        AIC and fitted envelope, ``data_used["chosen"]`` the one with the least AIC;
+        ``data_used["t"]`` and ``["amplitude"]`` the cycle-averaged envelope ``|Y|`` [s],
+        [m or rad] fitted (decimated to ~64 samples per period).
 
     Raises
     ------
-    RecordError, IdentificationError, ParameterError
-        As :func:`estimate_hilbert`.
+    RecordError
+        Record shorter than 4 periods or with corrupted bursts.
+    IdentificationError
+        Non-oscillating or too noisy record, fewer than one period between the trimmed
+        start and the end of motion, or a misfit above ``ripple_threshold``.
+    ParameterError
+        Non-positive options or mass.
 
     Notes
     -----
-    Models of the envelope E(t) over the valid window: viscous ``E0 exp(-sigma t)``, Coulomb
-    ``E0 - r t`` (the amplitude drops ``4 fk/K`` per cycle, ``K = J omega0²``, so
-    ``fk = K r T_d/4``), and combined ``(E0 + beta) exp(-sigma t) - beta`` with
-    ``fk = K beta tanh(x)``, ``x = sigma T_d/4`` (exact half-cycle recurrence of the peaks,
-    derived in ``_envelope_models``), ``c = 2 J sigma``. Standard errors come from the
-    Jacobian of :func:`scipy.optimize.least_squares`, inflated for the correlation of
-    envelope samples (one independent sample per period, the smoothing length); AIC uses
-    the same count.
+    The envelope is the complex one, :math:`Y(t)`: the analytic signal (2.195) demodulated
+    at the oscillation frequency and averaged over one period
+    (:func:`driveid.signal.envelope.cycle_phasor`); ``|Y|`` is the cycle-averaged
+    instantaneous amplitude. With viscous + Coulomb friction the velocity reverses every
+    half period whatever the amplitude, so the decay is a periodic friction part plus
+    ``exp(-sigma t)`` times a periodic part (see ``_limit_cycle_phasor``), and because the
+    average is linear in the signal
+
+    .. math:: Y(t) = e^{j\Delta\omega t}\big(a + e^{-\sigma t}(b + c_{+}e^{j\omega t}
+              + c_{-}e^{-j\omega t} + \dots)\big)
+
+    up to the Hilbert transform's own end effects, whatever the asymmetry: the half-cycle
+    alternation of the amplitude (which
+    biases fits of :math:`|z|` or of :math:`\langle\ln|z|\rangle`) only leaves the small
+    ripple terms :math:`c_\pm` (size :math:`\sim\sigma/\omega`), which are fitted. With
+    ``c_delta != 0`` the mean of the decay drifts, and the Hilbert transform of that slow
+    drift leaves a ripple of nearly constant amplitude; when the window spans at least
+    four periods two non-decaying ripple terms are fitted as well. Models:
+    viscous (``a = 0``), Coulomb (``sigma -> 0``: ``a + b t``) and combined; ``dw``,
+    ``sigma`` by variable projection, the rest linear. Friction from the fitted phasors:
+    ``c = 2 J sigma`` (with ``c_delta`` the decay rate per cycle is the half-period-weighted
+    mean of ``(c_mean ± c_delta)/2J``, relatively higher by about
+    ``(c_delta / (2 J omega0))²``: 0.2-0.6 % for Table 5.1 cases 1, 2 and 5); combined:
+    ``fk = J omega0² d`` with ``d`` the projection of
+    :math:`a\,\bar b/|b|` on the limit-cycle phasor per unit ``d`` (computed for symmetric
+    damping; ``c_delta`` makes the true phasor differ by about
+    :math:`(1+\rho_+)(1+\rho_-)/(1+\sqrt{\rho_+\rho_-})^2-1`, 0.5 % for Table 5.1 case 1);
+    Coulomb: the envelope falls ``4 d`` per period, ``d = r T/4``. The fit runs from
+    ``trim_periods`` after the start to half a period before the motion ends (the last
+    midline crossing plus a quarter period; the record is cut there before the Hilbert
+    transform, so the stop does not leak into it) or ``trim_periods`` before the record
+    ends. Standard errors come from the Jacobian, inflated for the correlation of envelope
+    samples (one independent sample per period); AIC uses the same count.
 
     Examples
     --------
@@ -501,61 +639,109 @@ def estimate_envelope_damping(
     >>> est.data_used["chosen"], round(est.value("c_mean"), 3)
     ('viscous', 0.2)
     """
-    inst = _instantaneous(
-        record, mass=mass, forced=False, smoothing_periods=1.0, trim_periods=trim_periods,
-        ripple_threshold=ripple_threshold, min_snr=min_snr,
-    )
+    for name, value in (("trim_periods", trim_periods), ("ripple_threshold", ripple_threshold),
+                        ("min_snr", min_snr)):
+        if not (math.isfinite(value) and value > 0):
+            raise ParameterError(f"{name} must be positive and finite; got {value!r}")
+    if mass is not None and not (math.isfinite(mass) and mass > 0):
+        raise ParameterError(
+            f"mass must be a positive inertia [kg·m² or kg] or None; got {mass!r}"
+        )
+    osc = check_oscillation(record, min_snr=min_snr)
     J = 1.0 if mass is None else float(mass)
-    tw = inst.t - inst.t[0]
-    env = inst.amplitude
-    wd, _ = weighted_slope(inst.t, inst.phase, inst.amplitude**2, 10.0)
-    period = 2 * np.pi / wd
-    n_eff = max(tw[-1] / period, 4.0)
-    e0, e1 = float(env[0]), float(env[-1])
-    rate0 = max((e0 - e1) / tw[-1], 1e-12 * e0)
-    sigma0 = max(math.log(e0 / e1) / tw[-1], 1e-9)
-    starts = {"viscous": [e0, sigma0], "coulomb": [e0, rate0],
-              "combined": [e0, 0.5 * sigma0, 0.5 * rate0 / sigma0]}
+    t, fs = record.t, record.fs
+    peak = float(np.max(np.abs(osc.x)))
+    t_last, omega = _crossings(osc.x, t, max(DYNAMIC_RANGE * peak, 5.0 * osc.noise))
+    for final in (False, True):
+        # the second pass demodulates at the refined frequency: the period average then
+        # cancels the periodic parts exactly
+        period = 2 * np.pi / omega
+        stop = min(int(np.searchsorted(t, t_last + period / 4)), t.size)
+        z = np.zeros(t.size, dtype=complex)
+        z[:stop] = analytic_signal(osc.x[:stop], fs, omega=omega)
+        y_all = cycle_phasor(z, fs, omega)
+        t_stop = t[stop - 1] - period / 2
+        t_end = min(t_stop, t[-1] - trim_periods * period)
+        i0 = int(np.searchsorted(t, t[0] + trim_periods * period))
+        i1 = int(np.searchsorted(t, t_end, side="right"))
+        if i1 <= i0 or (t[i1 - 1] - t[i0]) < period:
+            got = max(t[i1 - 1] - t[i0], 0.0) if i1 > i0 else 0.0
+            raise IdentificationError(
+                "the envelope window (after trimming the start and the last half period of "
+                "motion) must span at least one period; record a longer or less damped "
+                f"decay, or lower trim_periods; got {got:.3g} s against a period of "
+                f"{period:.3g} s"
+            )
+        step = max(int(round(period * fs)) // 64, 1)
+        idx = np.arange(i0, i1, step)
+        tw = t[idx] - t[idx[0]]
+        y = y_all[idx] * np.exp(1j * omega * (idx[0] / fs))  # phase origin at window start
+        env = np.abs(y)
+        sigma0 = max(math.log(env[0] / max(env[-1], 1e-300 + 1e-12 * env[0])) / tw[-1],
+                     1e-2 / tw[-1])
+        kinds = ("viscous", "coulomb", "combined") if final else ("combined",)
+        drift = tw[-1] >= _DRIFT_RIPPLE_PERIODS * period
+        fits = {k: _fit_phasor(k, tw, y, omega, sigma0, drift) for k in kinds}
+        if not final:
+            omega = omega + fits["combined"]["dw"]
+    n_eff = max(tw[-1] / period, 1.0)
     models: dict[str, dict[str, Any]] = {}
-    for name, (fun, names) in _envelope_models(period).items():
-        fit = least_squares(lambda p, f=fun: f(p, tw) - env, starts[name], x_scale="jac")
-        rss = float(fit.fun @ fit.fun)
-        k = len(names)
-        s2 = rss / max(env.size - k, 1)
+    for kind, f in fits.items():
+        k = f["p"].size
+        s2 = f["rss"] / max(2 * y.size - k, 1)
         try:
-            cov = np.linalg.inv(fit.jac.T @ fit.jac) * s2 * env.size / n_eff
+            cov = np.linalg.inv(f["jac"].T @ f["jac"]) * s2 * y.size / n_eff
         except np.linalg.LinAlgError:
             cov = np.full((k, k), np.nan)
-        aic = n_eff * math.log(max(rss / env.size, 1e-300)) + 2 * k
-        models[name] = {"params": dict(zip(names, fit.x.tolist(), strict=True)),
-                        "stderr": dict(zip(names, np.sqrt(np.abs(np.diag(cov))).tolist(),
-                                           strict=True)),
-                        "cov": cov, "aic": aic, "fitted": fun(fit.x, tw)}
+        f["cov"] = cov
+        aic = n_eff * math.log(max(f["rss"] / y.size, 1e-300)) + 2 * k
+        models[kind] = {"aic": aic, "fitted": np.abs(f["model"])}
     chosen = min(models, key=lambda m: models[m]["aic"])
-    m = models[chosen]
-    p, cov = np.array(list(m["params"].values())), m["cov"]
+    f = fits[chosen]
+    w = omega + f["dw"]
+    misfit = math.sqrt(f["rss"] / y.size) / float(np.mean(env))
+    if misfit > ripple_threshold:
+        raise IdentificationError(
+            f"the envelope does not follow a viscous/Coulomb decay: relative RMS misfit "
+            f"must be <= {ripple_threshold:g} (ripple_threshold); check that the record is a "
+            f"single-mode free decay; got {misfit:.3g}"
+        )
+
+    def friction(kind: str, p: np.ndarray) -> tuple[float, float, float]:
+        """(c, fk, omega0) from a full parameter vector of model ``kind``."""
+        if kind == "coulomb":
+            wk = omega + p[0]
+            a, slope = p[1] + 1j * p[2], p[3] + 1j * p[4]
+            rate = -float((slope * np.conj(a)).real) / abs(a)
+            return 0.0, J * wk**2 * rate * (2 * np.pi / wk) / 4, wk
+        s, wk = p[0], omega + p[1]
+        w0 = math.hypot(wk, s)
+        if kind == "viscous":
+            return 2 * J * s, 0.0, w0
+        a, b = p[2] + 1j * p[3], p[4] + 1j * p[5]
+        per_d = _limit_cycle_phasor(s, w0)
+        d = float((np.conj(per_d) * a * np.conj(b) / abs(b)).real) / abs(per_d) ** 2
+        return 2 * J * s, J * w0**2 * d, w0
+
+    p, cov = f["p"], f["cov"]
+    c, fk, w0 = friction(chosen, p)
+    grads = np.zeros((2, p.size))
+    for i in range(p.size):
+        dp = np.zeros(p.size)
+        dp[i] = 1e-6 * max(abs(p[i]), 1e-3 * np.max(np.abs(p)))
+        hi, lo = friction(chosen, p + dp), friction(chosen, p - dp)
+        grads[:, i] = [(hi[0] - lo[0]) / (2 * dp[i]), (hi[1] - lo[1]) / (2 * dp[i])]
+    c_err, fk_err = (float(np.sqrt(max(g @ cov @ g, 0.0))) for g in grads)
     if chosen == "viscous":
-        sigma = p[1]
-        w0 = math.hypot(wd, sigma)
-        c, c_err = 2 * J * sigma, 2 * J * math.sqrt(cov[1, 1])
-        fk, fk_err = 0.0, math.nan
-    elif chosen == "coulomb":
-        w0 = wd
-        c, c_err = 0.0, math.nan
-        scale = J * w0**2 * period / 4
-        fk, fk_err = scale * p[1], scale * math.sqrt(cov[1, 1])
-    else:
-        sigma = p[1]
-        w0 = math.hypot(wd, sigma)
-        c, c_err = 2 * J * sigma, 2 * J * math.sqrt(cov[1, 1])
-
-        def fk_of(q: np.ndarray) -> float:
-            return J * w0**2 * q[2] * math.tanh(q[1] * period / 4)
-
-        fk = fk_of(p)
-        grad = np.array([(fk_of(p + dp) - fk_of(p - dp)) / (2 * dp[i]) if dp[i] else 0.0
-                         for i, dp in enumerate(np.diag(np.abs(p) * 1e-6 + 1e-12))])
-        fk_err = float(np.sqrt(grad @ cov @ grad))
+        fk_err = math.nan
+    if chosen == "coulomb":
+        c_err = math.nan
+    for kind, fit in fits.items():
+        kc, kfk, _ = friction(kind, fit["p"])
+        models[kind]["params"] = {"sigma": fit["sigma"], "omega": omega + fit["dw"],
+                                  "c_mean": kc, "fk_mean": kfk}
+        models[kind]["stderr"] = {"sigma": float(np.sqrt(abs(fit["cov"][0, 0])))
+                                  if kind != "coulomb" else math.nan}
     xu, uu = record.units["x"], record.units["u"]
     cu = f"{uu}·s/{xu}" if mass is not None else "1/s"
     fu = uu if mass is not None else f"{xu}/s²"
@@ -564,13 +750,13 @@ def estimate_envelope_damping(
         "fk_mean": Parameter(float(fk), float(fk_err), fu),
         "omega0": Parameter(float(w0), math.nan, "rad/s"),
     }
-    for entry in models.values():
-        entry.pop("cov")
-    data_used = {"t": inst.t, "amplitude": env, "models": models, "chosen": chosen,
-                 "window": (float(inst.t[0]), float(inst.t[-1])),
-                 "window_index": (inst.i0, inst.i1), "mass_normalised": mass is None}
-    diagnostics = {"chosen": chosen, "n_eff": n_eff,
+    data_used = {"t": t[idx], "amplitude": env, "models": models, "chosen": chosen,
+                 "window": (float(t[idx[0]]), float(t[idx[-1]])),
+                 "window_index": (int(idx[0]), int(idx[-1]) + 1),
+                 "mass_normalised": mass is None}
+    diagnostics = {"chosen": chosen, "n_eff": n_eff, "misfit": misfit,
                    **{f"aic_{k}": v["aic"] for k, v in models.items()},
-                   "window_start": float(inst.t[0]), "window_stop": float(inst.t[-1])}
+                   "window_start": float(t[idx[0]]), "window_stop": float(t[idx[-1]]),
+                   "motion_end": float(t_last + period / 4), "omega": float(w)}
     return Estimate(method="hilbert-envelope", params=params, data_used=data_used,
                     diagnostics=diagnostics)
