@@ -512,7 +512,9 @@ def simulate_drive(
         at rest.
     torque : array_like, optional
         External torque on each body [N·m]: shape (n_bodies,) constant, or
-        (n_bodies, n) sampled at the output times and interpolated linearly.
+        (n_bodies, n) sampled at the output times and interpolated linearly. With
+        ``params.motor`` the motor body's entry is an amplifier command [V or A of
+        demand], added to the feedback output before the amplifier.
     reference : array_like, shape (n,), optional
         Feedback reference [rad] at the output times, replacing ``feedback.reference``.
     max_step : float, optional
