@@ -291,9 +291,9 @@ _MOTOR_MODES = ("voltage", "current")
 class MotorAmplifier:
     r"""DC motor armature and amplifier driving the motor body (Eqs. 2.105–2.108).
 
-    The command ``u`` of the drive (feedback or external) enters the amplifier; the motor
-    torque ``k_m i`` [N·m] acts on the motor body. The rotor inertia and friction belong to
-    that body, not to this object.
+    The command ``u`` of the drive (PD output plus the external command of the motor body)
+    enters the amplifier; the motor torque ``k_m i`` [N·m] acts on the motor body. The rotor
+    inertia and friction belong to that body, not to this object.
 
     Parameters
     ----------
@@ -326,9 +326,17 @@ class MotorAmplifier:
 
     Notes
     -----
-    With ``L_m = 0``, voltage mode and viscous friction ``c`` on a motor body of inertia
-    ``J``, a constant command ``u`` gives ``ω_ss = k_m k_a u/(R_m c + k_m k_emf)`` with time
-    constant ``J R_m/(R_m c + k_m k_emf)``, consistent with (2.106)–(2.108).
+    The motor body is the drive's feedback body, or body 0 without feedback. With
+    ``L_m = 0``, voltage mode and viscous friction ``c`` on a motor body of inertia ``J``, a
+    constant command ``u`` gives ``ω_ss = k_m k_a u/(R_m c + k_m k_emf)`` with time constant
+    ``J R_m/(R_m c + k_m k_emf)``.
+
+    Relation to the thesis: the input ``i_a`` of (2.105) is the locked-rotor current
+    ``V/(L_m s + R_m)`` (see :func:`dc_motor_tf`), so voltage mode is (2.105) with
+    ``V = (L_m s + R_m) i_a``; for ``L_m = 0`` the thesis's (2.107)/(2.108) with its
+    amplifier constant ``k_a`` [A/V] is voltage mode with gain ``k_a R_m`` [V/V]. Current
+    mode is the physical current loop, which rejects the back-EMF: ``θ/u → k_m k_a/(s(J s +
+    μ))`` as ``ω_c → ∞``.
 
     Examples
     --------
