@@ -5,7 +5,9 @@ W1  free decay with stiction (J=1, K=16, c=0.3±0.1, fk=0.07±0.03, fs=1.5 fk, x
 W1x1000  the same with every parameter drawn ±30 %: simulate_free_decay_batch.
 W3  three-body drive (motor, backlash, arm, shaft, tool) under delayed PD, 5 s: ours vs
     LSODA by the method of steps (one solve_ivp per delay interval, delayed state from the
-    previous interval's dense output).
+    previous interval's dense output), at a user's rtol 1e-6 and at the rtol that matches our
+    accuracy on its own model (its tanh friction is a different model, so the accuracy of
+    each is measured against a much finer run of itself).
 W3x100  100 such drives with inertias, friction, stiffnesses and gains drawn +-30 %:
     simulate_drive_batch vs a Python loop of simulate_drive over the same drives.
 
@@ -171,7 +173,18 @@ def main():
           f"  mode switches {w3.n_mode_switches}   (target < 100 ms)")
     print(f"  LSODA/steps {t_ls * 1e3:8.1f} ms  max|err| {err_ls:.1e} rad"
           " (its model: tanh friction, no stiction)")
-    print(f"  speed-up vs LSODA: {t_ls / t_w3:.1f}x   (target >= 10x)")
+    print(f"  speed-up vs LSODA: {t_ls / t_w3:.1f}x   (a user's rtol 1e-6; target >= 10x)")
+    # Matched accuracy: LSODA's own integration error on its own (tanh) model, against a
+    # much finer LSODA run, at the loosest rtol that reaches our 1e-6 rad (1e-6 of the step).
+    own_ref = w3_lsoda(t5, rtol=1e-11, atol=1e-14)
+    for rtol in (1e-6, 1e-7, 1e-8, 1e-9):
+        t_m, ls_m = best_of(lambda rtol=rtol: w3_lsoda(t5, rtol=rtol, atol=rtol * 1e-3), n=1)
+        own_err = np.max(np.abs(ls_m - own_ref))
+        print(f"  LSODA rtol {rtol:.0e}: {t_m * 1e3:8.1f} ms  own-model error {own_err:.1e} rad")
+        if own_err <= 1e-6:
+            break
+    print(f"  speed-up at matched accuracy (<= 1e-6 rad each): {t_m / t_w3:.1f}x"
+          "   (target >= 10x)")
 
     print("== W3 x 100, inertias, friction, stiffnesses and P drawn +-30 %, 5 s each")
     rng = np.random.default_rng(0)
