@@ -27,6 +27,7 @@ from driveid.sim.drive import (
     DriveParams,
     PDFeedback,
     ShaftLink,
+    _highest_rate,
     simulate_drive,
 )
 
@@ -87,6 +88,11 @@ def w3_params(s=(1.0,) * 10):
              ShaftLink(k=50.0 * s[8], c=0.05))
     return DriveParams(bodies=bodies, links=links,
                        feedback=PDFeedback(P=5.0 * s[9], D=0.3, delay=0.01, reference=1.0))
+
+
+def _highest_step(params):
+    """The default RK4 step of simulate_drive for ``params`` [s]."""
+    return 0.2 / _highest_rate(params)
 
 
 def w3_lsoda(t_eval, rtol=1e-6, atol=1e-9, v_smooth=1e-3):
@@ -183,7 +189,16 @@ def main():
         print(f"  LSODA rtol {rtol:.0e}: {t_m * 1e3:8.1f} ms  own-model error {own_err:.1e} rad")
         if own_err <= 1e-6:
             break
-    print(f"  speed-up at matched accuracy (<= 1e-6 rad each): {t_m / t_w3:.1f}x"
+    # ... and ours at the loosest RK4 step (default x 1, 1.1, 1.2, 1.3) that stays <= 1e-6
+    h0 = _highest_step(p)
+    for factor in (1.3, 1.2, 1.1, 1.0):
+        simulate_drive(p, duration=5.0, max_step=factor * h0)
+        t_f, w3_f = best_of(lambda f=factor: simulate_drive(p, duration=5.0, max_step=f * h0))
+        err_f = np.max(np.abs(w3_f.x - fine.x))
+        if err_f <= 1e-6:
+            break
+    print(f"  ours, step x{factor:.1f}: {t_f * 1e3:8.1f} ms  max|err| {err_f:.1e} rad")
+    print(f"  speed-up at matched accuracy (<= 1e-6 rad each): {t_m / t_f:.1f}x"
           "   (target >= 10x)")
 
     print("== W3 x 100, inertias, friction, stiffnesses and P drawn +-30 %, 5 s each")
