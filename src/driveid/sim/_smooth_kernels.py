@@ -9,6 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
+from driveid.sim._kernels import _interp
 from driveid.sim.lugre import _solve_inplace
 
 _A11, _A12, _A21, _A22 = 5.0 / 12.0, -1.0 / 12.0, 0.75, 0.25
@@ -20,20 +21,6 @@ _MAX_STEPS = 50_000_000
 # body parameter columns
 (_J, _K, _CM, _CD, _FKD, _LG, _S0, _S1, _S2, _FC, _FS, _VS) = range(12)
 _N_AUX = 5  # command, raw command, input power, friction power, contact power
-
-
-@njit(cache=True, inline="always")
-def _interp(arr, row, tau, fs):
-    """Linear interpolation of ``arr[row]`` sampled at ``k/fs`` (held beyond the ends)."""
-    pos = tau * fs
-    n = arr.shape[1]
-    if pos <= 0.0:
-        return arr[row, 0]
-    k = int(math.floor(pos))
-    if k >= n - 1:
-        return arr[row, n - 1]
-    w = pos - k
-    return arr[row, k] * (1.0 - w) + arr[row, k + 1] * w
 
 
 @njit(cache=True)
