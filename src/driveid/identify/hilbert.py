@@ -198,6 +198,17 @@ def check_oscillation(record: Record, *, min_snr: float) -> Oscillation:
     return Oscillation(x=x, omega=omega, noise=noise, snr=snr)
 
 
+def _check_options(mass, **positive) -> None:
+    """Raise ParameterError unless every option is positive and finite and mass is valid."""
+    for name, value in positive.items():
+        if not (math.isfinite(value) and value > 0):
+            raise ParameterError(f"{name} must be positive and finite; got {value!r}")
+    if mass is not None and not (math.isfinite(mass) and mass > 0):
+        raise ParameterError(
+            f"mass must be a positive inertia [kg·m² or kg] or None; got {mass!r}"
+        )
+
+
 def _instantaneous(
     record: Record,
     *,
@@ -209,15 +220,8 @@ def _instantaneous(
     min_snr: float,
 ) -> _Instantaneous:
     """Compute FREEVIB / FORCEVIB instantaneous parameters and the valid window."""
-    for name, value in (("smoothing_periods", smoothing_periods),
-                        ("trim_periods", trim_periods), ("ripple_threshold", ripple_threshold),
-                        ("min_snr", min_snr)):
-        if not (math.isfinite(value) and value > 0):
-            raise ParameterError(f"{name} must be positive and finite; got {value!r}")
-    if mass is not None and not (math.isfinite(mass) and mass > 0):
-        raise ParameterError(
-            f"mass must be a positive inertia [kg·m² or kg] or None; got {mass!r}"
-        )
+    _check_options(mass, smoothing_periods=smoothing_periods, trim_periods=trim_periods,
+                   ripple_threshold=ripple_threshold, min_snr=min_snr)
     osc = check_oscillation(record, min_snr=min_snr)
     fs = record.fs
     period = 2 * np.pi / osc.omega
@@ -639,14 +643,8 @@ def estimate_envelope_damping(
     >>> est.data_used["chosen"], round(est.value("c_mean"), 3)
     ('viscous', 0.2)
     """
-    for name, value in (("trim_periods", trim_periods), ("ripple_threshold", ripple_threshold),
-                        ("min_snr", min_snr)):
-        if not (math.isfinite(value) and value > 0):
-            raise ParameterError(f"{name} must be positive and finite; got {value!r}")
-    if mass is not None and not (math.isfinite(mass) and mass > 0):
-        raise ParameterError(
-            f"mass must be a positive inertia [kg·m² or kg] or None; got {mass!r}"
-        )
+    _check_options(mass, trim_periods=trim_periods, ripple_threshold=ripple_threshold,
+                   min_snr=min_snr)
     osc = check_oscillation(record, min_snr=min_snr)
     J = 1.0 if mass is None else float(mass)
     t, fs = record.t, record.fs
