@@ -26,11 +26,15 @@ class Parameter:
         One-sigma standard error [unit]; ``nan`` where none is available.
     unit : str
         SI unit, e.g. ``"N·m"``; ``"-"`` for dimensionless.
+    fixed : bool
+        True for a value that was given (``--mass 1``), not estimated; its ``stderr`` is
+        ``nan`` and JSON shows ``"fixed": true, "stderr": null`` (never a misleading 0).
     """
 
     value: float
     stderr: float = math.nan
     unit: str = "-"
+    fixed: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """Return ``{"value", "stderr", "unit"}`` with NaN written as ``None``."""
@@ -57,6 +61,12 @@ class Estimate:
         Scalar diagnostics: residual rms, condition number, counts.
     warnings : tuple of str
         Reasons to trust the estimate less.
+    covariance : mapping or None
+        ``{"names": [...], "matrix": ndarray (p, p)}`` of the estimated parameters in their
+        units, where the method provides it.
+    inputs : tuple of mapping
+        Provenance of each record used: ``path``, ``sha256``, ``rows``, ``columns``,
+        ``window`` [s], ``units``.
     """
 
     method: str
@@ -64,12 +74,15 @@ class Estimate:
     data_used: Mapping[str, Any] = field(default_factory=dict)
     diagnostics: Mapping[str, Any] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    covariance: Mapping[str, Any] | None = None
+    inputs: tuple[Mapping[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "params", MappingProxyType(dict(self.params)))
         object.__setattr__(self, "data_used", MappingProxyType(dict(self.data_used)))
         object.__setattr__(self, "diagnostics", MappingProxyType(dict(self.diagnostics)))
         object.__setattr__(self, "warnings", tuple(self.warnings))
+        object.__setattr__(self, "inputs", tuple(self.inputs))
 
     def __getitem__(self, name: str) -> Parameter:
         try:

@@ -1,0 +1,141 @@
+"""How every identify command shows its result (defined once).
+
+``@output_options`` adds ``--json``, ``--series``, ``--figure PATH``, ``--report PATH``,
+``--overwrite``, ``--strict`` and ``--quiet`` and passes one :class:`OutputOptions` to the
+callback as ``output_opts``. :func:`emit` prints the estimate (table or the result schema of
+:meth:`driveid.identify.estimate.Estimate.to_dict`), writes the figure and report, and prints
+the estimate's warnings on stderr (``--strict``: a warning is an error, exit 2).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import click
+
+__all__ = ["OutputOptions", "output_options", "emit"]
+
+
+@dataclass(frozen=True)
+class OutputOptions:
+    """What to show and write.
+
+    Attributes
+    ----------
+    as_json : bool
+        Print the result schema as JSON instead of a table.
+    series : bool
+        Include long time series in the JSON.
+    figure : Path or None
+        PNG (or PDF/SVG) figure to write.
+    report : Path or None
+        Self-contained HTML report to write.
+    overwrite : bool
+        Replace existing figure/report files.
+    strict : bool
+        Turn the estimate's warnings into an error (exit 2).
+    quiet : bool
+        No progress output.
+    """
+
+    as_json: bool = False
+    series: bool = False
+    figure: Path | None = None
+    report: Path | None = None
+    overwrite: bool = False
+    strict: bool = False
+    quiet: bool = False
+
+
+def output_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Add the shared output options to a click command; pass ``output_opts`` to it."""
+    options = [
+        click.option("--json", "out_json", is_flag=True,
+                     help="Print the result as JSON (schema: docs, 'Result schema')."),
+        click.option("--series", "out_series", is_flag=True,
+                     help="Include long time series in the JSON."),
+        click.option("--figure", "out_figure", default=None,
+                     type=click.Path(dir_okay=False, path_type=Path),
+                     help="Write a figure (PNG, PDF or SVG)."),
+        click.option("--report", "out_report", default=None,
+                     type=click.Path(dir_okay=False, path_type=Path),
+                     help="Write a self-contained HTML report."),
+        click.option("--overwrite", "out_overwrite", is_flag=True,
+                     help="Replace existing figure/report files."),
+        click.option("--strict", "out_strict", is_flag=True,
+                     help="Treat warnings as errors (exit 2), for scripts."),
+        click.option("--quiet", "out_quiet", is_flag=True, help="No progress output."),
+    ]
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        kwargs["output_opts"] = OutputOptions(
+            as_json=kwargs.pop("out_json"), series=kwargs.pop("out_series"),
+            figure=kwargs.pop("out_figure"), report=kwargs.pop("out_report"),
+            overwrite=kwargs.pop("out_overwrite"), strict=kwargs.pop("out_strict"),
+            quiet=kwargs.pop("out_quiet"))
+        return func(*args, **kwargs)
+
+    for option in reversed(options):
+        wrapper = option(wrapper)
+    return wrapper
+
+
+def emit(est: Any, opts: OutputOptions, *, records: Sequence[Any] = (),
+         figure: Callable[[], Any] | None = None, header: str | None = None) -> None:
+    """Show an estimate as the options ask.
+
+    Parameters
+    ----------
+    est : Estimate
+        The result.
+    opts : OutputOptions
+        From :func:`output_options`.
+    records : sequence of Record
+        The records it was estimated from (provenance, figure, report).
+    figure : callable, optional
+        Returns a matplotlib figure of the estimate; called only if ``--figure`` or
+        ``--report`` was given.
+    header : str, optional
+        A line printed above the table.
+
+    Raises
+    ------
+    SystemExit
+        With status 2 under ``--strict`` when the estimate carries warnings.
+    """
+    from driveid.errors import IdentificationError
+
+    for message in est.warnings:
+        click.echo(f"warning: {message}", err=True)
+    if opts.strict and est.warnings:
+        raise IdentificationError(
+            f"{len(est.warnings)} warning(s) under --strict (first: {est.warnings[0]}); "
+            "drop --strict to get the estimate anyway")
+    fig = None
+    if figure is not None and (opts.figure is not None or opts.report is not None):
+        fig = figure()
+    if opts.figure is not None and fig is not None:
+        from driveid.report.figures import save_figure
+
+        save_figure(fig, opts.figure, overwrite=opts.overwrite)
+    if opts.report is not None:
+        from driveid.report import html
+
+        html.write_report([est], opts.report, figures=[fig] if fig is not None else [],
+                          command=list(sys.argv), overwrite=opts.overwrite)
+    if opts.as_json:
+        click.echo(json.dumps(est.to_dict(series=opts.series), indent=2))
+        return
+    if header:
+        click.echo(header)
+    click.echo(est.table())
+    for path in (opts.figure, opts.report):
+        if path is not None:
+            click.echo(f"wrote {path}")

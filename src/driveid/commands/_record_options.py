@@ -1,0 +1,232 @@
+"""The record options shared by every command that reads a trace (defined once).
+
+``@record_options`` adds ``--time --position --velocity --force`` (column name, 0-based index
+or ``VAR:INDEX``), ``--fs``, ``--t-start``, ``--t-end``, ``--max-jitter``, ``--scale COL=F``,
+``--unit COL=UNIT``, ``--counts-per-rev`` and ``--counts-per-metre`` to a click command and
+passes one :class:`RecordOptions` to the callback as ``record_opts``. ``record_opts.read(spec)``
+reads one file (``file.csv@12.5:40`` keeps its own window) with the same keywords as
+:func:`driveid.io.read_record`.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import click
+
+__all__ = ["RecordOptions", "record_options", "split_window_spec"]
+
+
+@dataclass(frozen=True)
+class RecordOptions:
+    """How to read a trace: columns, sample rate, window, jitter, scales and units.
+
+    Attributes
+    ----------
+    columns : dict
+        Record column (``t``, ``x``, ``v``, ``u``) -> name, index or ``VAR:INDEX`` in the file.
+    fs : float or None
+        Sample rate [Hz] for files without a time column.
+    window : tuple of (float or None, float or None)
+        Start and end time [s] kept from every file (a file's own ``@t0:t1`` wins).
+    max_jitter : float or None
+        Largest relative deviation of a sampling interval [-]; ``None`` accepts any
+        increasing timeline.
+    scale : dict
+        Record column -> factor (a number, an expression such as ``0.02/60``, or a scalar
+        variable of the file).
+    units : dict
+        Record column -> unit string stating or overriding the file's unit.
+    counts_per_rev, counts_per_metre : float or None
+        Encoder resolution for positions given in counts [counts/rev, counts/m].
+    """
+
+    columns: dict[str, str] = field(default_factory=dict)
+    fs: float | None = None
+    window: tuple[float | None, float | None] = (None, None)
+    max_jitter: float | None = 0.01
+    scale: dict[str, Any] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+    counts_per_rev: float | None = None
+    counts_per_metre: float | None = None
+
+    def read(self, spec: str | Path) -> Any:
+        """Read one file, ``PATH`` or ``PATH@T0:T1`` (either bound may be empty) [s]."""
+        from driveid.io import read_record
+
+        path, window = split_window_spec(spec)
+        if window == (None, None):
+            window = self.window
+        return read_record(path, **self.read_kwargs(window))
+
+    def read_all(self, specs: Sequence[str | Path]) -> list[Any]:
+        """Read several files, each with its own window."""
+        return [self.read(spec) for spec in specs]
+
+    def read_kwargs(self, window: tuple[float | None, float | None] | None = None
+                    ) -> dict[str, Any]:
+        """Keywords of :func:`driveid.io.read_record` for these options."""
+        kwargs: dict[str, Any] = {"max_jitter": self.max_jitter}
+        if self.columns:
+            kwargs["columns"] = dict(self.columns)
+        if self.scale:
+            kwargs["scale"] = dict(self.scale)
+        if self.units:
+            kwargs["units"] = dict(self.units)
+        if self.fs is not None:
+            kwargs["fs"] = self.fs
+        window = self.window if window is None else window
+        if window != (None, None):
+            kwargs["window"] = window
+        if self.counts_per_rev is not None:
+            kwargs["counts_per_rev"] = self.counts_per_rev
+        if self.counts_per_metre is not None:
+            kwargs["counts_per_metre"] = self.counts_per_metre
+        return kwargs
+
+
+def split_window_spec(spec: str | Path) -> tuple[Path, tuple[float | None, float | None]]:
+    """Split ``PATH@T0:T1`` into the path and its window [s]; a plain path has none.
+
+    Parameters
+    ----------
+    spec : str or Path
+        ``run.csv``, ``run.csv@12.5:40``, ``run.csv@12.5:`` or ``run.csv@:40``.
+
+    Returns
+    -------
+    tuple
+        ``(Path, (t0 or None, t1 or None))``.
+
+    Examples
+    --------
+    >>> split_window_spec("a.csv@1.5:")
+    (PosixPath('a.csv'), (1.5, None))
+    """
+    text = str(spec)
+    if "@" not in text or Path(text).exists():
+        return Path(text), (None, None)
+    path, _, window = text.rpartition("@")
+    start, sep, end = window.partition(":")
+    if not sep:
+        raise click.BadParameter(
+            f"window {window!r} must be T0:T1 in seconds, e.g. {path}@12.5:40; got {text!r}")
+    return Path(path), (_time(start, text), _time(end, text))
+
+
+def _time(text: str, spec: str) -> float | None:
+    if not text.strip():
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise click.BadParameter(f"window bound {text!r} in {spec!r} is not a number [s]"
+                                 ) from None
+    if not math.isfinite(value):
+        raise click.BadParameter(f"window bound in {spec!r} must be finite [s]; got {text!r}")
+    return value
+
+
+def _pairs(values: Sequence[str], option: str) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for item in values:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise click.BadParameter(f"{option} takes COL=VALUE, e.g. {option} u=200; got {item!r}")
+        out[_column(key.strip(), option)] = value.strip()
+    return out
+
+
+_COLUMN_NAMES = {"t": "t", "time": "t", "x": "x", "position": "x", "v": "v", "velocity": "v",
+                 "u": "u", "force": "u", "torque": "u"}
+
+
+def _column(name: str, option: str) -> str:
+    try:
+        return _COLUMN_NAMES[name.lower()]
+    except KeyError:
+        raise click.BadParameter(
+            f"{option} names record column {name!r}; use t, x, v or u (time, position, "
+            "velocity, force)") from None
+
+
+def record_options(func: Callable[..., Any]) -> Callable[..., Any]:
+    """Add the shared record options to a click command; pass ``record_opts`` to it."""
+    options = [
+        click.option("--time", "opt_time", default=None,
+                     help="Time column: name, 0-based index or VAR:INDEX (default: found "
+                          "by name, e.g. t, time, Zeit)."),
+        click.option("--position", "opt_position", default=None,
+                     help="Position column: name, 0-based index or VAR:INDEX."),
+        click.option("--velocity", "opt_velocity", default=None,
+                     help="Velocity column: name, 0-based index or VAR:INDEX."),
+        click.option("--force", "opt_force", default=None,
+                     help="Force/torque column: name, 0-based index or VAR:INDEX."),
+        click.option("--fs", "opt_fs", type=float, default=None,
+                     help="Sample rate [Hz] for files without a time column."),
+        click.option("--t-start", "opt_t_start", type=float, default=None,
+                     help="Keep samples from this time on [s] (per file: FILE@T0:T1)."),
+        click.option("--t-end", "opt_t_end", type=float, default=None,
+                     help="Keep samples up to this time [s]."),
+        click.option("--max-jitter", "opt_max_jitter", default="0.01", show_default=True,
+                     help="Largest relative deviation of a sampling interval; 'none' "
+                          "accepts any increasing timeline."),
+        click.option("--scale", "opt_scale", multiple=True, metavar="COL=F",
+                     help="Multiply a column by F after reading, e.g. u=200 (N per V) or "
+                          "v=0.02/60; repeatable."),
+        click.option("--unit", "opt_unit", multiple=True, metavar="COL=UNIT",
+                     help="State or override a column's unit, e.g. x=mm; repeatable."),
+        click.option("--counts-per-rev", "opt_counts_per_rev", type=float, default=None,
+                     help="Encoder counts per revolution, for positions in counts."),
+        click.option("--counts-per-metre", "opt_counts_per_metre", type=float, default=None,
+                     help="Encoder counts per metre, for positions in counts."),
+    ]
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        kwargs["record_opts"] = _build(kwargs)
+        return func(*args, **kwargs)
+
+    for option in reversed(options):
+        wrapper = option(wrapper)
+    return wrapper
+
+
+def _build(kwargs: dict[str, Any]) -> RecordOptions:
+    columns = {}
+    for col, key in (("t", "opt_time"), ("x", "opt_position"), ("v", "opt_velocity"),
+                     ("u", "opt_force")):
+        value = kwargs.pop(key)
+        if value is not None:
+            columns[col] = value
+    jitter_text = str(kwargs.pop("opt_max_jitter")).strip().lower()
+    if jitter_text == "none":
+        max_jitter = None
+    else:
+        try:
+            max_jitter = float(jitter_text)
+        except ValueError:
+            raise click.BadParameter(
+                f"--max-jitter takes a fraction such as 0.05 or 'none'; got {jitter_text!r}"
+            ) from None
+        if not (math.isfinite(max_jitter) and max_jitter > 0):
+            raise click.BadParameter(
+                f"--max-jitter must be a positive fraction or 'none'; got {jitter_text!r}")
+    fs = kwargs.pop("opt_fs")
+    if fs is not None and not (math.isfinite(fs) and fs > 0):
+        raise click.BadParameter(f"--fs must be a positive sample rate [Hz]; got {fs}")
+    return RecordOptions(
+        columns=columns,
+        fs=fs,
+        window=(kwargs.pop("opt_t_start"), kwargs.pop("opt_t_end")),
+        max_jitter=max_jitter,
+        scale=_pairs(kwargs.pop("opt_scale"), "--scale"),
+        units=_pairs(kwargs.pop("opt_unit"), "--unit"),
+        counts_per_rev=kwargs.pop("opt_counts_per_rev"),
+        counts_per_metre=kwargs.pop("opt_counts_per_metre"),
+    )
