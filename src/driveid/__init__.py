@@ -3,6 +3,23 @@
 Implements and extends J. A. de Marchi, "Modeling of dynamic friction, impact backlash and
 elastic compliance nonlinearities in machine tools", PhD thesis, RPI, 1998.
 
+Main entry points (imported on first use, so ``import driveid`` stays fast)
+---------------------------------------------------------------------------
+Records and files
+    :class:`Record`, :func:`read_record`, :func:`write_record`
+Identification (each returns an :class:`Estimate` with standard errors)
+    :func:`estimate_output_error` (whole-record free-decay fit, the default),
+    :func:`estimate_log_decrement` (peaks, thesis 2.166-2.175),
+    :func:`estimate_hilbert`, :func:`estimate_wavelet`, :func:`estimate_pho_campaign`,
+    :func:`estimate_forced_response`, :func:`estimate_idim`, :func:`estimate_friction_map`
+Validation
+    :func:`compare` (simulate the identified model over a record: fit %, residuals)
+Simulation
+    :func:`simulate_free_decay`, :func:`simulate_drive`, :func:`simulate_lugre_oscillator`,
+    :class:`OscillatorParams`, :class:`DriveParams`, :class:`BodyParams`
+Reports
+    :func:`write_report` (self-contained HTML)
+
 Sign conventions (stated once, used everywhere)
 -----------------------------------------------
 Equation of motion ``J x'' + C(x') x' + K x + F_k(x') = u`` (thesis 2.136), with
@@ -12,8 +29,59 @@ Equation of motion ``J x'' + C(x') x' + K x + F_k(x') = u`` (thesis 2.136), with
 * static friction ``fs_mean + fs_delta * sgn(applied force)`` (2.155a)
 
 ``delta`` terms are signed. Units are SI: x in m or rad, u in N or N·m, t in s.
+
+Examples
+--------
+>>> import driveid
+>>> "read_record" in driveid.__all__
+True
 """
 
-__version__ = "0.1.0"
+from __future__ import annotations
 
-__all__ = ["__version__"]
+import importlib
+from typing import Any
+
+__version__ = "0.2.0"
+
+# Public name -> module that defines it; resolved lazily (PEP 562) so that the command line
+# and ``import driveid`` do not pay for scipy, numba or matplotlib until they are used.
+_EXPORTS = {
+    "Record": "driveid.io",
+    "read_record": "driveid.io",
+    "write_record": "driveid.io",
+    "Estimate": "driveid.identify.estimate",
+    "Parameter": "driveid.identify.estimate",
+    "estimate_output_error": "driveid.identify.output_error",
+    "estimate_log_decrement": "driveid.identify.logdec",
+    "estimate_hilbert": "driveid.identify.hilbert",
+    "estimate_wavelet": "driveid.identify.wavelet",
+    "estimate_pho_campaign": "driveid.identify.pho",
+    "estimate_forced_response": "driveid.identify.forced",
+    "estimate_idim": "driveid.identify.idim",
+    "estimate_friction_map": "driveid.identify.friction_map",
+    "compare": "driveid.validate",
+    "simulate_free_decay": "driveid.sim",
+    "simulate_drive": "driveid.sim",
+    "simulate_lugre_oscillator": "driveid.sim",
+    "OscillatorParams": "driveid.sim",
+    "DriveParams": "driveid.sim",
+    "BodyParams": "driveid.sim",
+    "write_report": "driveid.report.html",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name of :data:`__all__` on first use."""
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'driveid' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -114,7 +114,7 @@ def plot_log_decrement(estimate: Any, *, record: Any = None, ax: Any = None) -> 
                 label="measured peaks" if k == 0 else None)
         if fits is not None:
             fit = np.asarray(fits[k])
-            upper = fit >= np.median(fit)
+            upper = _is_maximum(np.asarray(xp))
             for mask, name in ((upper, "upper"), (~upper, "lower")):
                 ax.plot(tp[mask], fit[mask], "--", color="k", lw=0.9,
                         label="fitted envelope" if (k == 0 and name == "upper") else None)
@@ -129,6 +129,19 @@ def plot_log_decrement(estimate: Any, *, record: Any = None, ax: Any = None) -> 
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(True, alpha=0.3)
     return fig
+
+
+def _is_maximum(peaks: np.ndarray) -> np.ndarray:
+    """Which of alternating extrema are maxima, by comparison with their neighbours.
+
+    Splitting by the median of the values (as before) joins maxima and minima into one
+    diagonal line when the record's equilibrium is offset from zero, as on measured records.
+    """
+    n = peaks.size
+    if n < 2:
+        return np.ones(n, dtype=bool)
+    first_is_max = peaks[0] > peaks[1]
+    return (np.arange(n) % 2 == 0) == first_is_max
 
 
 def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False) -> Path:
@@ -147,10 +160,28 @@ def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False) -> Path:
     -------
     Path
         The written file.
-    """
-    from driveid.io.files import ensure_writable
 
-    path = ensure_writable(path, overwrite=overwrite)
-    fig.savefig(path, dpi=120)
-    pyplot().close(fig)
+    Notes
+    -----
+    Written atomically (:func:`driveid.io.safe_write.atomic_save`): a symbolic link at
+    ``path`` is never followed (refused, or with ``overwrite`` the link itself replaced),
+    and an interrupted save leaves no partial image.
+    """
+    from driveid.io.safe_write import atomic_save
+
+    path = Path(path)
+    fmt = path.suffix.lstrip(".").lower() or "png"
+    supported = fig.canvas.get_supported_filetypes()
+    if fmt not in supported:
+        from driveid.errors import FileFormatError
+
+        pyplot().close(fig)
+        raise FileFormatError(
+            f"cannot write a figure as {path.name}: unknown image suffix {path.suffix!r}; "
+            f"use one of {', '.join('.' + k for k in ('png', 'pdf', 'svg'))}")
+    try:
+        atomic_save(path, lambda fh: fig.savefig(fh, format=fmt, dpi=120),
+                    overwrite=overwrite)
+    finally:
+        pyplot().close(fig)
     return path
