@@ -23,6 +23,7 @@ matplotlib.use("Agg")
 from driveid.experiment import SimulatedPlant, run_pho_campaign  # noqa: E402
 from driveid.identify.pho import estimate_pho_records  # noqa: E402
 from driveid.io import ensure_writable  # noqa: E402
+from driveid.report.figures import plot_estimate  # noqa: E402
 from driveid.sim.presets import preset  # noqa: E402
 
 NAMES = ["J", "c_mean", "c_delta", "fk_mean", "fk_delta"]
@@ -53,7 +54,7 @@ def main(out: Path, force: bool) -> None:
         print(f"{name:10} {truth[name]:12.6g} {errors[0]:12.3f} {errors[1]:12.3f}")
     out.mkdir(parents=True, exist_ok=True)
     path = ensure_writable(out / "pho_campaign.png", overwrite=force)
-    compensated.plot().savefig(path, dpi=110)
+    plot_estimate(compensated).savefig(path, dpi=110)
     print(f"figure: {path}")
 
 

@@ -66,19 +66,31 @@ def test_analyse_campaign_json_and_uncompensated(campaign):
     runner = CliRunner()
     result = runner.invoke(pho_group, ["analyse", str(out), "--json", "--K", "0"])
     assert result.exit_code == 0, result.output
-    est = json.loads(result.output)
+    est = json.loads(result.stdout)["parameters"]
     assert {"J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "delay"} <= set(est)
     # issue 5 acceptance: J within 0.5 %, fk_mean within 1 % (delay known from the manifest)
     assert est["J"]["value"] == pytest.approx(A["J"], rel=0.005)
     assert est["fk_mean"]["value"] == pytest.approx(A["fk_mean"], rel=0.01)
     assert est["delay"]["value"] == A["delay"]
     unc = json.loads(runner.invoke(pho_group, ["analyse", str(out / "manifest.json"),
-                                               "--json", "--K", "0", "--uncompensated"]).output)
+                                               "--json", "--K", "0", "--uncompensated"]
+                                   ).stdout)["parameters"]
     # ignoring the delay books its negative damping P·Δ ≈ 0.07-0.1 N·m·s/rad into c_mean
     # (the wrong-sign viscous friction of the thesis's Table 5.2)
     assert unc["delay"]["value"] == 0.0 and unc["c_mean"]["value"] < -0.05
     text = runner.invoke(pho_group, ["analyse", str(out), "--K", "0"]).output
     assert "8 accepted run(s), 0 rejected; delay 0.01377 s" in text and "fk_mean" in text
+    # record options apply to every run file: a window that drops the first 0.1 s
+    cut = json.loads(runner.invoke(pho_group, ["analyse", str(out), "--json", "--K", "0",
+                                               "--t-start", "0.1"]).stdout)
+    assert all(i["window"][0] >= 0.1 for i in cut["inputs"])
+    assert cut["parameters"]["J"]["value"] == pytest.approx(A["J"], rel=0.005)  # as above
+    assert cut["parameters"]["K"]["fixed"] and cut["parameters"]["K"]["stderr"] is None
+    fig = out.parent / "pho.png"
+    res = runner.invoke(pho_group, ["analyse", str(out), "--K", "0", "--figure", str(fig)])
+    assert res.exit_code == 0 and fig.stat().st_size > 10_000, res.output
+    res = runner.invoke(pho_group, ["analyse", str(out), "--K", "0", "--figure", str(fig)])
+    assert res.exit_code == 2 and "--overwrite" in res.stderr  # never overwritten silently
 
 
 def test_analyse_hand_written_manifest_of_plain_csv_files(tmp_path):
@@ -97,7 +109,9 @@ def test_analyse_hand_written_manifest_of_plain_csv_files(tmp_path):
     result = CliRunner().invoke(pho_group, ["analyse", str(tmp_path / "pd.json"), "--json"])
     assert result.exit_code == 0, result.output
     # same acceptance bound as above: the hand-written route loses nothing
-    assert json.loads(result.output)["J"]["value"] == pytest.approx(A["J"], rel=0.005)
+    est = json.loads(result.stdout)
+    assert est["parameters"]["J"]["value"] == pytest.approx(A["J"], rel=0.005)
+    assert len(est["inputs"]) == 8 and est["inputs"][0]["path"].endswith("r1pos.csv")
 
 
 def test_analyse_errors(tmp_path):
@@ -113,3 +127,76 @@ def test_analyse_errors(tmp_path):
     result = runner.invoke(pho_group, ["analyse", str(tmp_path), "--delay", "0.01",
                                        "--uncompensated"])
     assert result.exit_code == 2 and "at most one of" in result.output
+
+
+def test_analyse_reads_outside_the_folder_only_when_allowed(tmp_path):
+    plant = SimulatedPlant("testbed-a", counts_per_rev=4000, seed=2)
+    (tmp_path / "data").mkdir()
+    (tmp_path / "campaign").mkdir()
+    runs = []
+    for P in (5.0, 7.0):
+        for D in (0.1, 0.14):
+            for sign in (1, -1):
+                rec = plant.run_pd(P=P, D=D, x0=sign * 1.0, duration=2.5, fs=1000.0)
+                name = f"r{len(runs) + 1}.csv"
+                np.savetxt(tmp_path / "data" / name, np.column_stack([rec.t, rec.x, rec.u]),
+                           delimiter=",", header="t,x,u", comments="")
+                runs.append({"file": f"../data/{name}", "P": P, "D": D})
+    manifest = tmp_path / "campaign" / "manifest.json"
+    manifest.write_text(json.dumps({"delay_s": A["delay"], "K": 0, "runs": runs}))
+    runner = CliRunner()
+    res = runner.invoke(pho_group, ["analyse", str(manifest)])
+    assert res.exit_code == 2 and "--allow-outside" in res.stderr
+    res = runner.invoke(pho_group, ["analyse", str(manifest), "--allow-outside", "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["parameters"]["J"]["value"] == pytest.approx(A["J"],
+                                                                               rel=0.005)
+
+
+def test_pho_run_help_states_the_real_defaults():
+    # issue 15: --help once promised P x 1, 1.2, 1.4 and D x 1 while the code used others
+    from driveid.commands import pho as pho_commands
+    from driveid.sim.presets import preset
+
+    d = pho_commands.preset_campaign_defaults("testbed-a")
+    fb = preset("testbed-a").feedback
+    factors = [p / fb.P for p in d["P_values"]]
+    assert factors == pytest.approx(pho_commands.P_FACTORS, rel=1e-9)
+    assert d["D_start"] / fb.D == pytest.approx(pho_commands.D_START_FACTOR, rel=1e-9)
+    assert d["D_step"] / fb.D == pytest.approx(pho_commands.D_STEP_FACTOR, rel=1e-9)
+    result = CliRunner().invoke(pho_commands.pho_group, ["run", "--help"], terminal_width=200)
+    assert "P × 0.4, 0.6, 0.8" in result.output
+    assert "0.3 × the preset's D" in result.output and "0.1 × the preset's D" in result.output
+
+
+def test_pho_run_refuses_an_absurd_plan_before_starting(tmp_path):
+    from driveid.cli import cli
+
+    result = CliRunner().invoke(cli, ["pho", "run", "--out", str(tmp_path / "c"),
+                                      "--n-D", "5000", "--max-runs", "100"])
+    assert result.exit_code == 2
+    assert "--max-runs" in result.output and "PHO runs" not in result.output
+    assert not (tmp_path / "c").exists()
+
+
+def test_pho_run_with_an_asymmetric_plant_is_identified(tmp_path):
+    # issue 17: `pho run` on asymmetric plants; Δfk = 10 % and Δc = 30 % of the means,
+    # noise-free runs: the campaign analysis recovers them (within 3 %, the PHO tests' bound
+    # for asymmetric campaigns, tests/identify/test_pho_friction.py)
+    from driveid.cli import cli
+    from driveid.sim.presets import preset
+
+    body = preset("testbed-a").bodies[0]
+    c_delta, fk_delta = 0.3 * body.c_mean, 0.1 * body.fk_mean
+    out = tmp_path / "asym"
+    res = CliRunner().invoke(cli, ["pho", "run", "--out", str(out), "--c-delta", str(c_delta),
+                                   "--fk-delta", str(fk_delta), "--duration", "4"])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(cli, ["pho", "analyse", str(out), "--K", "0", "--json"])
+    assert res.exit_code == 0, res.output
+    par = json.loads(res.stdout)["parameters"]
+    assert par["fk_mean"]["value"] == pytest.approx(body.fk_mean, rel=0.03)
+    assert par["fk_delta"]["value"] == pytest.approx(fk_delta, rel=0.03)
+    res = CliRunner().invoke(cli, ["pho", "run", "--out", str(tmp_path / "bad"),
+                                   "--fk-delta", "10"])
+    assert res.exit_code == 2 and res.output.startswith("error:")

@@ -40,7 +40,24 @@ True
 from __future__ import annotations
 
 import importlib
+import signal
+import sys
 from typing import Any
+
+
+def _interrupted_while_starting(signum: int, frame: Any) -> None:  # pragma: no cover
+    """Ctrl-C before the command line is loaded: one line and exit 130, not a traceback."""
+    sys.stderr.write("error: interrupted (Ctrl-C) while starting; nothing was done\n")
+    raise SystemExit(130)
+
+
+# Only the `driveid` script, never a library user's process; driveid.cli restores the default
+# handler (it recognises this function's name) once its imports are done.
+if sys.argv and sys.argv[0].endswith("driveid"):
+    try:
+        signal.signal(signal.SIGINT, _interrupted_while_starting)
+    except ValueError:  # not the main thread
+        pass
 
 __version__ = "0.2.0"
 

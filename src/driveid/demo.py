@@ -3,8 +3,10 @@
 Plant: thesis Table 5.1, case 3 (J = 1 kg·m², K = 16 N·m/rad, c̄ = 0.3, Δc = 0.1 N·m·s/rad,
 f̄k = 0.07, Δfk = 0.03 N·m) with static friction f̄s = 1.5 f̄k, released from +10 rad and from
 -10 rad, sampled at 1 kHz by an 8000 counts/rev encoder. The two runs are identified
-jointly (the thesis's FMixLR mixing) by the least-squares log decrement with J known, and
-each run also by the thesis's closed forms, as printed and corrected.
+jointly (the thesis's FMixLR mixing) with J known by the whole-record output-error fit
+(every sample; error bars by a re-quantising bootstrap) and, for comparison, by the
+least-squares log decrement of the peaks and the thesis's closed forms, as printed and
+corrected. The run folder also gets ``report.html``, a self-contained report.
 """
 
 from __future__ import annotations
@@ -14,8 +16,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 from driveid.identify.logdec import estimate_log_decrement, estimate_log_decrement_thesis
+from driveid.identify.output_error import estimate_output_error
 from driveid.io import write_record
-from driveid.report.figures import save_figure
+from driveid.report.figures import plot_estimate, save_figure
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
 
 __all__ = ["DEMO_PARAMS", "next_run_folder", "run_demo"]
@@ -82,25 +85,39 @@ def run_demo(out_root: str | Path = "driveid-demo", *,
         end = (f"stuck at {sim.stuck_at:.2f} s" if sim.stuck_at is not None
                else "still moving at the end")
         echo(f"  run {name}: {sim.n_reversals} velocity reversals, {end}")
-    est = estimate_log_decrement(records, mass=p.J)
+    est = estimate_output_error(records, mass=p.J, rng=0)  # every sample, bootstrap for counts
+    peaks = estimate_log_decrement(records, mass=p.J)
     printed = estimate_log_decrement_thesis(records[0], corrected=False, mass=p.J)
     corrected = estimate_log_decrement_thesis(records[0], corrected=True, mass=p.J)
     truth = {"omega0": p.omega0, "K": p.K, "c_mean": p.c_mean, "c_delta": p.c_delta,
              "fk_mean": p.fk_mean, "fk_delta": p.fk_delta}
     echo("")
-    echo(f"{'parameter':<10}{'truth':>10}{'least squares (±1 s.e.)':>30}{'error':>10}"
-         f"{'thesis printed':>16}{'corrected':>12}")
+    echo(f"{'parameter':<10}{'truth':>10}{'output error (±1 s.e.)':>30}{'error':>10}"
+         f"{'peaks':>12}{'thesis printed':>16}{'corrected':>12}")
     for name, true in truth.items():
         par = est[name]
         err = 100 * (par.value - true) / abs(true)
         echo(f"{name:<10}{true:>10.5g}{par.value:>18.6g} ± {par.stderr:<9.2g}{err:>9.3f}%"
-             f"{printed.value(name):>16.5g}{corrected.value(name):>12.5g}")
+             f"{peaks.value(name):>12.6g}{printed.value(name):>16.5g}"
+             f"{corrected.value(name):>12.5g}")
     echo("")
     echo("units: omega0 rad/s, K N·m/rad, c N·m·s/rad, fk N·m; thesis columns use run 'pos'"
          " only (printed: first five peaks, with its errata)")
-    (folder / "estimate.json").write_text(json.dumps(est.to_dict(), indent=2))
-    figure = save_figure(est.plot(record=records), folder / "free_decay_logdec.png")
+    from driveid.io import read_record
+    from driveid.io.safe_write import atomic_write_text
+    from driveid.report.html import write_report
+
+    # provenance (path, SHA-256, rows, window, units) of the files the demo wrote
+    written = [read_record(folder / f"free_decay_{name}.csv") for name in ("pos", "neg")]
+    est = est.with_inputs(written)
+    atomic_write_text(folder / "estimate.json",
+                      json.dumps(est.to_dict(command=["driveid", "demo"]), indent=2))
+    figure = save_figure(plot_estimate(est, record=records), folder / "free_decay_oe.png")
+    report = write_report(
+        [est], folder / "report.html", command=["driveid", "demo"],
+        title="driveid demo: free decay of thesis Table 5.1 case 3, ± runs fitted jointly",
+        figures=[("Both runs, measured peaks and the fitted envelopes", figure)])
     echo(f"wrote {folder / 'free_decay_pos.csv'}, {folder / 'free_decay_neg.csv'}, "
-         f"{folder / 'estimate.json'}, {figure}")
+         f"{folder / 'estimate.json'}, {figure}, {report}")
     return {"folder": folder, "truth": truth,
             "estimate": {k: v.value for k, v in est.params.items()}}

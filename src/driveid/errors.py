@@ -44,7 +44,7 @@ class FileFormatError(DriveIdError, ValueError):
 
 
 class OverwriteError(DriveIdError, FileExistsError):
-    """Writing would overwrite an existing file; pass ``overwrite=True`` (CLI ``--force``)."""
+    """Writing would overwrite an existing file; pass ``overwrite=True`` (CLI ``--overwrite``)."""
 
 
 class ConfigError(DriveIdError, ValueError):

@@ -47,7 +47,7 @@ def test_minimal_hand_written_manifest(tmp_path):
     x1 = _csv(tmp_path / "r1pos.csv")
     _csv(tmp_path / "r1neg.csv", amplitude=-0.1)
     (tmp_path / "sub").mkdir()
-    x3 = _csv(tmp_path / "sub" / "r2pos.csv")
+    x3 = _csv(tmp_path / "sub" / "r2pos.csv", amplitude=0.12)  # not a copy of r1pos
     path = _write(tmp_path, {"delay_s": 0.01377, "K": 0, "runs": [
         {"file": "r1pos.csv", "P": 1.5, "D": 0.03},
         {"file": "r1neg.csv", "P": 1.5, "D": 0.03, "accepted": False},

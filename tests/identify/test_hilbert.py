@@ -277,14 +277,40 @@ def test_cli_hilbert(tmp_path):
     res = runner.invoke(hilbert_command, [str(path), "--json", "--figure", str(fig)])
     assert res.exit_code == 0, res.output
     out = json.loads(res.output)
-    assert out["omega0"]["value"] == pytest.approx(w0, rel=1e-4)
-    assert out["zeta"]["value"] == pytest.approx(0.02, rel=1e-3)
-    assert len(out["series"]["t"]) == len(out["series"]["zeta"]) > 0
+    assert out["parameters"]["omega0"]["value"] == pytest.approx(w0, rel=1e-4)
+    assert out["parameters"]["zeta"]["value"] == pytest.approx(0.02, rel=1e-3)
+    assert "t" not in out["data_used"]  # long series only with --series
+    res = runner.invoke(hilbert_command, [str(path), "--json", "--series"])
+    series = json.loads(res.output)["data_used"]
+    assert len(series["t"]) == len(series["zeta"]) > 0
     assert fig.exists()
     res = runner.invoke(hilbert_command, [str(path), "--figure", str(fig)])
     assert res.exit_code == 2 and "error:" in res.output and "Traceback" not in res.output
-    res = runner.invoke(hilbert_command, [str(path), "--figure", str(fig), "--force"])
+    res = runner.invoke(hilbert_command, [str(path), "--figure", str(fig), "--overwrite"])
     assert res.exit_code == 0 and "omega0" in res.output
     short = write_record(linear_decay(0.02, periods=3)[0], tmp_path / "short.npz")
     res = runner.invoke(hilbert_command, [str(short)])
     assert res.exit_code == 2 and res.output.startswith("error: the record must span")
+
+
+def test_smoothing_is_savgol_and_sound_at_long_windows():
+    from scipy.signal import savgol_filter
+
+    from driveid.signal.envelope import smooth_derivatives
+
+    rng = np.random.default_rng(5)
+    y = np.cumsum(rng.standard_normal(3000))
+    for window in (11, 301, 2001):
+        got = smooth_derivatives(y, 100.0, window)
+        for deriv, g in enumerate(got):
+            ref = savgol_filter(y, window, 3, deriv=deriv, delta=0.01, mode="interp")
+            # the same filter: round-off of scipy's unscaled fit grows with the window
+            assert np.max(np.abs(g - ref)) < 1e-8 * np.max(np.abs(ref))
+    # a cubic is reproduced exactly by a cubic fit at any window, here 40 001 samples where
+    # scipy's coefficients have lost all digits (issue 18)
+    t = np.arange(200_000) / 1e4
+    cubic = 0.5 * t**3 - t**2 + 3.0
+    value, first, second = smooth_derivatives(cubic, 1e4, 40_001)
+    assert np.max(np.abs(value - cubic)) < 1e-9 * np.max(np.abs(cubic))
+    assert np.max(np.abs(first - (1.5 * t**2 - 2 * t))) < 1e-7
+    assert np.max(np.abs(second - (3 * t - 2))) < 1e-5

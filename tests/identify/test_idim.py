@@ -66,7 +66,11 @@ def test_errors():
         estimate_idim(rec, cutoff_hz=600.0)
     one_way = Record(t=rec.t, x=rec.t * 0.1 + 0.01 * rec.t**2, u=rec.u)
     with pytest.raises(IdentificationError, match="other direction"):
-        estimate_idim(one_way, model="asymmetric")
+        estimate_idim(one_way)
+    # the asymmetric model identifies the travelled branch and flags the other one
+    half = estimate_idim(one_way, model="asymmetric", cutoff_hz=50.0)
+    assert np.isnan(half.value("Fc_minus")) and any("not identifiable" in w
+                                                    for w in half.warnings)
     still = Record(t=rec.t, x=np.zeros_like(rec.t), u=rec.u)
     with pytest.raises(IdentificationError, match="never moves"):
         estimate_idim(still)
@@ -150,10 +154,10 @@ def test_emps_command_line(emps):
     assert res.exit_code == 0, res.output
     import json
 
-    out = json.loads(res.output)
-    assert out["M"]["value"] == pytest.approx(95.1089, abs=0.1085)
+    out = json.loads(res.stdout)
+    assert out["parameters"]["M"]["value"] == pytest.approx(95.1089, abs=0.1085)
     # published cross-test relative error 5.9824 %
-    assert out["validation"]["relative_error_pct"] == pytest.approx(5.9824, rel=0.03)
+    assert out["diagnostics"]["validation"]["relative_error_pct"] == pytest.approx(5.9824, rel=0.03)
 
 
 @pytest.mark.shared_data

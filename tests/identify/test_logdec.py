@@ -145,3 +145,25 @@ def test_errors_name_the_problem():
         estimate_log_decrement(good, mass=-1.0)
     with pytest.raises(RecordError, match="non-finite"):
         Record(t=t, x=np.r_[np.nan, np.zeros(2999)])
+
+
+@pytest.mark.parametrize("zetas", [(0.05, 0.025), (0.6, 0.9), (1e-4, 2e-4), (0.999, 0.5)])
+def test_vectorised_peak_recursion_equals_the_step_by_step_recursion(zetas):
+    # reference: the recursion (2.168) one peak at a time, as written in the thesis
+    from driveid.identify.logdec import _ratio, peak_recursion
+
+    rng = np.random.default_rng(7)
+    directions = np.where(rng.random(5000) < 0.5, 1, -1)
+    directions[::2] = -directions[1::2][: directions[::2].size]  # mostly alternating
+    kw = dict(zeta_plus=zetas[0], zeta_minus=zetas[1], theta_k_mean=0.003,
+              theta_k_delta=-0.001)
+    got = peak_recursion(0.7, directions, **kw)
+    ref = np.empty(directions.size)
+    ref[0] = 0.7
+    for n in range(1, directions.size):
+        s = int(directions[n])
+        eq = -(kw["theta_k_mean"] * s + kw["theta_k_delta"])
+        rho = _ratio(kw["zeta_plus"] if s > 0 else kw["zeta_minus"])
+        ref[n] = eq - rho * (ref[n - 1] - eq)
+    # cumulative products over chunks of <= 256 steps: rounding ~ 256 eps of the swing
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)

@@ -156,7 +156,9 @@ def test_campaign_figure_shows_each_run_against_the_estimate(simulated, tmp_path
         assert per_run.shape == (len(plant["grid"]),)
         # each run alone within 5 % of the truth: the campaign is consistent run by run
         np.testing.assert_allclose(per_run, plant[name], rtol=5e-2)
-    fig = est.plot()
+    from driveid.report.figures import plot_estimate
+
+    fig = plot_estimate(est)
     path = tmp_path / "pho.png"
     fig.savefig(path)
     assert path.stat().st_size > 10_000

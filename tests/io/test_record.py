@@ -84,7 +84,7 @@ def test_never_overwrites(tmp_path):
     t, x = _sine()
     rec = Record(t=t, x=x)
     path = write_record(rec, tmp_path / "r.csv")
-    with pytest.raises(OverwriteError, match="--force"):
+    with pytest.raises(OverwriteError, match="--overwrite"):
         write_record(rec, path)
     write_record(rec, path, overwrite=True)
 
@@ -142,5 +142,5 @@ def test_unknown_unit_is_an_error(tmp_path):
     t, x = _sine(50)
     rows = "\n".join(f"{a},{b}" for a, b in zip(t, x, strict=True))
     (tmp_path / "furlong.csv").write_text("t [s],x [furlong]\n" + rows)
-    with pytest.raises(FileFormatError, match="'furlong'.*does not convert"):
+    with pytest.raises(FileFormatError, match="'furlong'.*does not know"):
         read_record(tmp_path / "furlong.csv")

@@ -19,7 +19,7 @@ from typing import Any
 
 import click
 
-__all__ = ["OutputOptions", "output_options", "emit"]
+__all__ = ["OutputOptions", "output_options", "emit", "plot_of"]
 
 
 @dataclass(frozen=True)
@@ -88,8 +88,12 @@ def output_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def emit(est: Any, opts: OutputOptions, *, records: Sequence[Any] = (),
-         figure: Callable[[], Any] | None = None, header: str | None = None) -> None:
+         figure: Callable[[], Any] | None = None, header: str | None = None) -> Any:
     """Show an estimate as the options ask.
+
+    The estimate is first completed: plausibility guards
+    (:func:`driveid.identify._plausibility.check_plausibility`), the warnings raised while
+    reading its records, and their provenance (``inputs``) when it has none.
 
     Parameters
     ----------
@@ -105,19 +109,37 @@ def emit(est: Any, opts: OutputOptions, *, records: Sequence[Any] = (),
     header : str, optional
         A line printed above the table.
 
+    Returns
+    -------
+    Estimate
+        The completed estimate that was shown.
+
     Raises
     ------
-    SystemExit
-        With status 2 under ``--strict`` when the estimate carries warnings.
+    IdentificationError
+        Under ``--strict`` when the estimate carries warnings (``clean_errors`` prints it
+        as one ``error:`` line, exit 2).
     """
-    from driveid.errors import IdentificationError
+    from click import UsageError
 
+    from driveid.commands import captured_warnings, mark_printed
+    from driveid.errors import IdentificationError
+    from driveid.identify._plausibility import check_plausibility
+
+    est = check_plausibility(est)
+    est = est.with_warnings(*captured_warnings())
+    if records and not est.inputs:
+        est = est.with_inputs(records)
     for message in est.warnings:
         click.echo(f"warning: {message}", err=True)
+    mark_printed(est.warnings)
     if opts.strict and est.warnings:
         raise IdentificationError(
             f"{len(est.warnings)} warning(s) under --strict (first: {est.warnings[0]}); "
             "drop --strict to get the estimate anyway")
+    if opts.figure is not None and figure is None:
+        raise UsageError("--figure: this command draws no figure; drop --figure (--report "
+                         "still writes the tables)")
     fig = None
     if figure is not None and (opts.figure is not None or opts.report is not None):
         fig = figure()
@@ -131,11 +153,33 @@ def emit(est: Any, opts: OutputOptions, *, records: Sequence[Any] = (),
         html.write_report([est], opts.report, figures=[fig] if fig is not None else [],
                           command=list(sys.argv), overwrite=opts.overwrite)
     if opts.as_json:
-        click.echo(json.dumps(est.to_dict(series=opts.series), indent=2))
-        return
+        click.echo(json.dumps(est.to_dict(series=opts.series, command=list(sys.argv)),
+                              indent=2))
+        return est
     if header:
         click.echo(header)
     click.echo(est.table())
     for path in (opts.figure, opts.report):
         if path is not None:
             click.echo(f"wrote {path}")
+    return est
+
+
+def plot_of(est: Any, records: Any) -> Any:
+    """Return the method's figure of ``est`` over ``records`` (a Record or a sequence).
+
+    Parameters
+    ----------
+    est : Estimate
+        The result.
+    records : Record or sequence of Record
+        The data it came from.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        From :func:`driveid.report.figures.plot_estimate`.
+    """
+    from driveid.report.figures import plot_estimate
+
+    return plot_estimate(est, record=records)

@@ -56,7 +56,19 @@ class RecordOptions:
     counts_per_metre: float | None = None
 
     def read(self, spec: str | Path) -> Any:
-        """Read one file, ``PATH`` or ``PATH@T0:T1`` (either bound may be empty) [s]."""
+        """Read one file, ``PATH`` or ``PATH@T0:T1`` (either bound may be empty) [s].
+
+        Parameters
+        ----------
+        spec : str or Path
+            The file, optionally with its own window; a file's window wins over
+            ``--t-start``/``--t-end``.
+
+        Returns
+        -------
+        Record
+            The record in SI units with provenance in ``meta``.
+        """
         from driveid.io import read_record
 
         path, window = split_window_spec(spec)
@@ -65,12 +77,44 @@ class RecordOptions:
         return read_record(path, **self.read_kwargs(window))
 
     def read_all(self, specs: Sequence[str | Path]) -> list[Any]:
-        """Read several files, each with its own window."""
-        return [self.read(spec) for spec in specs]
+        """Read several files, each with its own window.
+
+        Parameters
+        ----------
+        specs : sequence of str or Path
+            ``PATH`` or ``PATH@T0:T1`` each.
+
+        Returns
+        -------
+        list of Record
+            One per file, in order.
+
+        Warns
+        -----
+        RecordWarning
+            When the same data are given twice (their standard errors would shrink by
+            √2 with nothing new measured).
+        """
+        from driveid.io.consistency import warn_duplicates
+
+        records = [self.read(spec) for spec in specs]
+        warn_duplicates(records)
+        return records
 
     def read_kwargs(self, window: tuple[float | None, float | None] | None = None
                     ) -> dict[str, Any]:
-        """Keywords of :func:`driveid.io.read_record` for these options."""
+        """Return the keywords of :func:`driveid.io.read_record` for these options.
+
+        Parameters
+        ----------
+        window : tuple of (float or None, float or None), optional
+            Window [s] to use instead of the options' own.
+
+        Returns
+        -------
+        dict
+            ``max_jitter`` always; the other keywords where given.
+        """
         kwargs: dict[str, Any] = {"max_jitter": self.max_jitter}
         if self.columns:
             kwargs["columns"] = dict(self.columns)
@@ -164,9 +208,11 @@ def record_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--position", "opt_position", default=None,
                      help="Position column: name, 0-based index or VAR:INDEX."),
         click.option("--velocity", "opt_velocity", default=None,
-                     help="Velocity column: name, 0-based index or VAR:INDEX."),
+                     help="Velocity column: name, 0-based index or VAR:INDEX; 'none' "
+                          "ignores a velocity column."),
         click.option("--force", "opt_force", default=None,
-                     help="Force/torque column: name, 0-based index or VAR:INDEX."),
+                     help="Force/torque column: name, 0-based index or VAR:INDEX; 'none' "
+                          "ignores a force column."),
         click.option("--fs", "opt_fs", type=float, default=None,
                      help="Sample rate [Hz] for files without a time column."),
         click.option("--t-start", "opt_t_start", type=float, default=None,
@@ -189,7 +235,11 @@ def record_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        kwargs["record_opts"] = _build(kwargs)
+        try:
+            kwargs["record_opts"] = _build(kwargs)
+        except click.BadParameter as exc:
+            click.echo(f"error: {exc.format_message()}", err=True)
+            raise SystemExit(2) from None
         return func(*args, **kwargs)
 
     for option in reversed(options):

@@ -52,7 +52,8 @@ def write_drive_csv(result: DriveResult, path: str | Path, *, units: str = "rad"
     Path
         The written file. Columns ``t [s], x1 [rad], v1 [rad/s], x2 ..., command [N·m]``,
         bodies counted from 1; :func:`driveid.io.read_record` reads one body with e.g.
-        ``columns={"x": "x2", "v": "v2", "u": "command"}``.
+        ``columns={"x": "x2", "v": "v2", "u": "command"}`` (CLI: ``--position x2
+        --velocity v2 --force command``).
 
     Raises
     ------
@@ -71,7 +72,9 @@ def write_drive_csv(result: DriveResult, path: str | Path, *, units: str = "rad"
     names.append(f"command [{uu}]")
     columns.append(result.command)
     keep = np.all(np.isfinite(np.vstack(columns)), axis=0)  # rows after an abort are NaN
-    with open(path, "w", encoding="utf-8", newline="\n") as fh:
+    from driveid.io.safe_write import atomic_open
+
+    with atomic_open(path, "w", newline="\n", overwrite=overwrite) as fh:
         fh.write("# driveid record\n")
         fh.write(f"# meta: {json.dumps(to_jsonable(meta or {}))}\n")
         fh.write(",".join(names) + "\n")
@@ -89,9 +92,11 @@ def write_drive_csv(result: DriveResult, path: str | Path, *, units: str = "rad"
               help="Duration [s]; overrides the [run] table.")
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="CSV file to write: t, x1, v1, x2, v2 ..., command.")
-@click.option("--force", is_flag=True, help="Overwrite an existing output file.")
+@click.option("--overwrite", is_flag=True, help="Overwrite an existing output file.")
+@click.option("--force", "force_alias", is_flag=True, hidden=True,
+              help="Old name of --overwrite.")
 @clean_errors
-def drive_command(config, preset_name, duration, out, force):
+def drive_command(config, preset_name, duration, out, overwrite, force_alias):
     """Simulate the lumped drive described by CONFIG (TOML) or --preset; write a CSV record."""
     if (config is None) == (preset_name is None):
         raise click.UsageError("give either a CONFIG.toml file or --preset NAME (not both)")
@@ -108,6 +113,7 @@ def drive_command(config, preset_name, duration, out, force):
             options = dataclasses.replace(options, duration=duration)
         except ValueError as exc:
             raise ConfigError(f"--duration: {exc}") from None
+    force = overwrite or force_alias
     ensure_writable(_csv_path(out), overwrite=force)  # fail before a long simulation
     result = simulate_config(params, options)
     meta = {"source": "driveid simulate drive", "config": source,

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
-from collections.abc import Callable
+import dataclasses
 from pathlib import Path
 from typing import Any
 
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._output import emit, output_options
+from driveid.commands._record_options import record_options, split_window_spec
 
 __all__ = ["friction_map_command", "idim_command"]
 
@@ -23,105 +24,136 @@ def _scale(value: str | None) -> float | str | None:
         return value
 
 
-def _read(path: Path, position: str | None, force_column: str | None,
-          force_scale: str | None, velocity: str | None, units: str | None) -> Any:
-    from driveid.io import read_record
-
-    columns = {k: v for k, v in (("x", position), ("u", force_column), ("v", velocity)) if v}
-    scale = {"u": _scale(force_scale)} if force_scale is not None else None
-    unit_map = None
+def _legacy(record_opts: Any, force_column: str | None, force_scale: str | None,
+            units: str | None) -> Any:
+    """Fold the older --force-column/--force-scale/--units options into the record options."""
+    columns = dict(record_opts.columns)
+    if force_column and "u" not in columns:
+        columns["u"] = force_column
+    scale = dict(record_opts.scale)
+    if force_scale is not None:
+        scale.setdefault("u", _scale(force_scale))
+    unit_map = dict(record_opts.units)
     if units == "m":
-        unit_map = {"x": "m", "u": "N", "v": "m/s"}
+        unit_map = {"x": "m", "u": "N", "v": "m/s", **unit_map}
     elif units == "rad":
-        unit_map = {"x": "rad", "u": "N·m", "v": "rad/s"}
-    return read_record(path, columns=columns or None, scale=scale, units=unit_map)
+        unit_map = {"x": "rad", "u": "N·m", "v": "rad/s", **unit_map}
+    return dataclasses.replace(record_opts, columns=columns, scale=scale, units=unit_map)
 
 
-_column_options = [
-    click.option("--position", default=None, help="Name of the position variable in FILE."),
-    click.option("--force-column", default=None,
-                 help="Name of the force/torque variable in FILE."),
+_legacy_options = [
+    click.option("--force-column", default=None, hidden=True,
+                 help="Old name of --force (the force/torque column)."),
     click.option("--force-scale", default=None,
                  help="Factor on the force column: a number or the name of a scalar "
-                      "variable in FILE (EMPS: gtau)."),
+                      "variable in FILE (EMPS: gtau); same as --scale u=F."),
     click.option("--units", type=click.Choice(["m", "rad"]), default=None,
                  help="Translational (m, N) or rotational (rad, N·m); default from FILE."),
 ]
 
 
-def _with_columns(func: Callable[..., Any]) -> Callable[..., Any]:
-    for option in reversed(_column_options):
+def _with_legacy(func: Any) -> Any:
+    for option in reversed(_legacy_options):
         func = option(func)
     return func
 
 
 @click.command("idim")
-@click.argument("file", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]...")
 @click.option("--validate", "validate_file", default=None,
-              type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Second record for the cross-test (same θ, its observation matrix).")
+              help="Record for the cross-test (same θ, its observation matrix).")
 @click.option("--model", type=click.Choice(["symmetric", "asymmetric"]), default="symmetric",
               show_default=True, help="Coulomb + viscous + offset, or ± branches, no offset.")
-@_with_columns
 @click.option("--cutoff-hz", type=float, default=100.0, show_default=True,
               help="Zero-phase Butterworth cut-off on the position [Hz].")
 @click.option("--decimate", type=int, default=10, show_default=True,
               help="Decimation factor of observation matrix and force [-].")
+@click.option("--offset", type=float, default=None,
+              help="Known force offset [N or N·m], e.g. 0: runs in one direction become "
+                   "identifiable.")
+@click.option("--load", "load_column", default=None,
+              help="Column of FILE holding a known load force [N or N·m] to subtract.")
+@click.option("--load-expr", default=None,
+              help="Known load as an expression of t x v a u, e.g. '1.47*sin(x)'.")
+@click.option("--regressor", "regressors", multiple=True,
+              help="Extra regressor with an unknown coefficient, an expression of t x v a u "
+                   "with sin cos tanh sign abs exp sqrt, e.g. 'sin(x)'; repeatable.")
+@click.option("--weights", default=None,
+              help="'auto' (inverse residual variance per record) or one number per FILE, "
+                   "comma-separated.")
+@click.option("--min-speed", type=float, default=None,
+              help="Drop rows slower than this [m/s or rad/s] (standstill rows always are).")
+@click.option("--no-sensitivity", is_flag=True,
+              help="Skip the estimates at the two neighbouring cut-offs.")
 @click.option("--simulate", is_flag=True,
               help="Also simulate the closed loop (EMPS .mat files: reads qg, kp, kv, gtau "
                    "and pulses_N) and report position and force errors.")
-@click.option("--json", "as_json", is_flag=True, help="Print the estimate as JSON.")
-@click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Save measured vs predicted force (PNG).")
-@click.option("--force", is_flag=True, help="Overwrite an existing figure file.")
+@_with_legacy
+@record_options
+@output_options
 @clean_errors
-def idim_command(file, validate_file, model, position, force_column, force_scale, units,
-                 cutoff_hz, decimate, simulate, as_json, figure, force):
-    """Identify inertia, Coulomb and viscous friction by inverse-model least squares."""
-    from driveid.identify.idim import estimate_idim, validate_idim
+def idim_command(files, validate_file, model, cutoff_hz, decimate, offset, load_column,
+                 load_expr, regressors, weights, min_speed, no_sensitivity, simulate,
+                 force_column, force_scale, units, record_opts, output_opts):
+    """Identify inertia, Coulomb and viscous friction by inverse-model least squares.
 
-    record = _read(file, position, force_column, force_scale, None, units)
-    est = estimate_idim(record, model=model, cutoff_hz=cutoff_hz, decimate=decimate)
+    Several FILES are fitted in one least-squares problem (each filtered on its own).
+    """
+    from driveid.errors import ParameterError
+    from driveid.identify.idim import estimate_idim, validate_idim
+    from driveid.report.friction_figures import plot_idim
+
+    opts = _legacy(record_opts, force_column, force_scale, units)
+    records = opts.read_all(files)
+    if load_column and load_expr:
+        raise ParameterError("give the load as a column (--load) or an expression "
+                             f"(--load-expr), not both; got {load_column!r} and {load_expr!r}")
+    load: Any = load_expr
+    if load_column:
+        load_opts = dataclasses.replace(
+            opts, columns={**opts.columns, "u": load_column},
+            scale={k: v for k, v in opts.scale.items() if k != "u"})
+        load = [r.u for r in load_opts.read_all(files)]
+    w: Any = None
+    if weights:
+        w = "auto" if weights.strip() == "auto" else _numbers(weights, "--weights")
+    est = estimate_idim(records, model=model, cutoff_hz=cutoff_hz, decimate=decimate,
+                        offset=offset, load=load, regressors=regressors, weights=w,
+                        min_speed=min_speed, sensitivity=not no_sensitivity)
+    extra: dict[str, Any] = {}
     val = None
     if validate_file is not None:
-        val = validate_idim(est, _read(validate_file, position, force_column, force_scale,
-                                       None, units))
-    sims = {}
+        val = validate_idim(est, opts.read(validate_file))
+        extra["validation"] = val.to_dict()
     if simulate:
-        pairs = [(file, record)]
+        pairs = list(zip(files, records, strict=True))
         if validate_file is not None:
-            pairs.append((validate_file, _read(validate_file, position, force_column,
-                                               force_scale, None, units)))
-        for path, rec in pairs:
-            sims[path.name] = _simulate_emps(est, rec, path)
-    if figure is not None:
-        from driveid.report.figures import save_figure
-        from driveid.report.friction_figures import plot_idim
-
-        save_figure(plot_idim(est, val), figure, overwrite=force)
-    if as_json:
-        out = est.to_dict()
-        if val is not None:
-            out["validation"] = val.to_dict()
-        if sims:
-            out["simulation"] = sims
-        click.echo(json.dumps(out, indent=2))
-        return
+            pairs.append((validate_file, opts.read(validate_file)))
+        extra["simulation"] = {split_window_spec(f)[0].name: _simulate_emps(
+            est, rec, split_window_spec(f)[0]) for f, rec in pairs}
+    if extra:
+        est = dataclasses.replace(est, diagnostics={**est.diagnostics, **extra})
     d = est.diagnostics
-    click.echo(f"method: {est.method}   N = {d['n']}   cond = {d['cond']:.4g}   "
-               f"relative error = {d['relative_error_pct']:.4g} %")
-    click.echo(est.table())
+    emit(est, output_opts, records=records, figure=lambda: plot_idim(est, val),
+         header=f"method: {est.method}   N = {d['n']}   cond = {d['cond']:.4g}   "
+                f"relative error = {d['relative_error_pct']:.4g} %")
+    if output_opts.as_json:
+        return
     if val is not None:
-        click.echo(f"cross-test on {validate_file.name}: relative error "
-                   f"{val.relative_error:.4g} %   cond = {val.cond:.4g}")
-    for name, res in sims.items():
+        click.echo(f"cross-test on {split_window_spec(validate_file)[0].name}: relative "
+                   f"error {val.relative_error:.4g} %   cond = {val.cond:.4g}")
+    for name, res in extra.get("simulation", {}).items():
         click.echo(f"direct simulation of {name}: position error "
                    f"{res['position_error_pct']:.4g} %   force error "
                    f"{res['force_error_pct']:.4g} %")
-    for w in est.warnings:
-        click.echo(f"warning: {w}")
-    if figure is not None:
-        click.echo(f"figure: {figure}")
+
+
+def _numbers(text: str, option: str) -> list[float]:
+    try:
+        return [float(p) for p in text.split(",") if p.strip()]
+    except ValueError:
+        raise click.BadParameter(f"{option} takes 'auto' or numbers separated by commas; "
+                                 f"got {text!r}") from None
 
 
 def _simulate_emps(est: Any, record: Any, path: Path) -> dict[str, float]:
@@ -147,62 +179,84 @@ def _simulate_emps(est: Any, record: Any, path: Path) -> dict[str, float]:
 
 
 @click.command("friction-map")
-@click.argument("files", nargs=-1, required=True,
-                type=click.Path(exists=True, path_type=Path))
-@_with_columns
-@click.option("--velocity", default=None, help="Name of the velocity variable in FILE.")
+@click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]|FOLDER...")
 @click.option("--models", default="coulomb_viscous,lorentzian,bo_pavelescu,hess_soom",
               show_default=True, help="Comma-separated maps to fit.")
 @click.option("--rel-tol", type=float, default=0.02, show_default=True,
               help="Steady-segment tolerance relative to the speed [-].")
 @click.option("--min-samples", type=int, default=50, show_default=True,
               help="Shortest steady segment [samples].")
-@click.option("--json", "as_json", is_flag=True, help="Print all fits as JSON.")
-@click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Save friction vs velocity with the fitted maps (PNG).")
-@click.option("--force", is_flag=True, help="Overwrite an existing figure file.")
+@click.option("--min-speed", type=float, default=None,
+              help="Ignore steady points slower than this [m/s or rad/s].")
+@click.option("--max-speed", type=float, default=None,
+              help="Ignore steady points faster than this [m/s or rad/s].")
+@click.option("--inertia", type=float, default=None,
+              help="Known inertia J [kg or kg·m²]: bin F − J·a by velocity instead of "
+                   "looking for steady plateaus (sinusoidal or triangular tests).")
+@click.option("--bins", type=int, default=20, show_default=True,
+              help="With --inertia: velocity bins per direction [-].")
+@click.option("--cutoff-hz", type=float, default=None,
+              help="Low-pass before differentiating the position [Hz] (default fs/20).")
+@_with_legacy
+@record_options
+@output_options
 @clean_errors
-def friction_map_command(files, position, force_column, force_scale, units, velocity, models,
-                         rel_tol, min_samples, as_json, figure, force):
-    """Fit steady-velocity friction maps with + and − branches.
+def friction_map_command(files, models, rel_tol, min_samples, min_speed, max_speed, inertia,
+                         bins, cutoff_hz, force_column, force_scale, units, record_opts,
+                         output_opts):
+    """Fit friction maps with + and − branches from steady plateaus or binned motion.
 
-    FILES are records with constant-speed plateaus (one or several), or folders of TRO 2021
+    FILES are records (each may carry a window, run.csv@2:30), or folders of TRO 2021
     EPOS exports (e.g. screw_drive_friction_TRO2021/driveNo1/steady_state/0.096kg).
     """
-    from driveid.identify.friction_map import estimate_friction_map, read_tro2021_steady_state
+    from driveid.identify.friction_map import (
+        binned_points,
+        estimate_friction_map,
+        read_tro2021_steady_state,
+        steady_points,
+    )
+    from driveid.report.friction_figures import plot_friction_map
 
+    opts = _legacy(record_opts, force_column, force_scale, units)
     records = []
     for f in files:
-        if f.is_dir():
-            records += read_tro2021_steady_state(f)
+        path = Path(f)
+        if path.is_dir():
+            records += read_tro2021_steady_state(path)
         else:
-            records.append(_read(f, position, force_column, force_scale, velocity, units))
+            records.append(opts.read(f))
     names = tuple(m.strip() for m in models.split(",") if m.strip())
-    result = estimate_friction_map(records, models=names, rel_tol=rel_tol,
-                                   min_samples=min_samples)
-    if figure is not None:
-        from driveid.report.figures import save_figure
-        from driveid.report.friction_figures import plot_friction_map
-
-        save_figure(plot_friction_map(result), figure, overwrite=force)
-    if as_json:
-        click.echo(json.dumps(result.to_dict(), indent=2, default=float))
+    points = []
+    for rec in records:
+        if inertia is not None:
+            points += binned_points(rec, inertia=inertia, bins=bins, cutoff_hz=cutoff_hz)
+        else:
+            points += steady_points(rec, rel_tol=rel_tol, min_samples=min_samples,
+                                    cutoff_hz=cutoff_hz)
+    vu = records[0].units.get("x", "m") + "/s" if records else None
+    fu = records[0].units.get("u", "N") if records else None
+    result = estimate_friction_map(
+        points, models=names, velocity_unit=vu, force_unit=fu,
+        min_speed=0.0 if min_speed is None else min_speed,
+        max_speed=float("inf") if max_speed is None else max_speed)
+    est = result.estimate
+    warnings = tuple(dict.fromkeys(w for e in result.fits.values() for w in e.warnings))
+    est = dataclasses.replace(est, warnings=warnings, diagnostics={
+        **est.diagnostics, "n_points": len(result.points), "comparison": result.comparison,
+        "fits": {k: v.to_dict() for k, v in result.fits.items() if k != "coulomb_viscous"},
+        "source": "binned F - J·a" if inertia is not None else "steady segments"})
+    emit(est, output_opts, records=records, figure=lambda: plot_friction_map(result),
+         header=f"points: {len(result.points)}")
+    if output_opts.as_json:
         return
-    click.echo(f"steady points: {len(result.points)}")
-    click.echo(result.estimate.table())
     click.echo("")
     click.echo("model             branch  k   AIC       BIC       identifiable")
     for row in result.comparison:
         best = "  <- best AIC" if row.get("best_aic") else ""
         click.echo(f"{row['model']:<17} {row['branch']:<7} {row['k']:<3} {row['aic']:<9.4g} "
                    f"{row['bic']:<9.4g} {str(row['identifiable']):<5}{best}")
-    for model, est in result.fits.items():
+    for model, fit in result.fits.items():
         if model == "coulomb_viscous":
             continue
         click.echo(f"\n{model}:")
-        click.echo(est.table())
-    warnings = [w for est in result.fits.values() for w in est.warnings]
-    for w in warnings:
-        click.echo(f"warning: {w}")
-    if figure is not None:
-        click.echo(f"figure: {figure}")
+        click.echo(fit.table())

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._output import emit, output_options
+from driveid.commands._record_options import record_options
 from driveid.identify.logdec import estimate_log_decrement, estimate_log_decrement_thesis
-from driveid.io import read_record, write_record
+from driveid.io import write_record
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
 
 __all__ = ["free_decay_command", "logdec_command"]
@@ -48,11 +49,13 @@ __all__ = ["free_decay_command", "logdec_command"]
 @click.option("--seed", type=int, default=None, help="Seed of the noise generator.")
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Record file to write (.csv, .npz or .mat).")
-@click.option("--force", is_flag=True, help="Overwrite an existing output file.")
+@click.option("--overwrite", is_flag=True, help="Overwrite an existing output file.")
+@click.option("--force", "force_alias", is_flag=True, hidden=True,
+              help="Old name of --overwrite.")
 @clean_errors
 def free_decay_command(J, K, c_mean, c_delta, fk_mean, fk_delta, fs_mean, fs_delta, x0,
                        duration, fs, noise, counts_per_rev, counts_per_metre, units, seed, out,
-                       force):
+                       overwrite, force_alias):
     """Simulate an exact free decay with asymmetric friction and write it as a record."""
     params = OscillatorParams(J=J, K=K, c_mean=c_mean, c_delta=c_delta, fk_mean=fk_mean,
                               fk_delta=fk_delta, fs_mean=fs_mean, fs_delta=fs_delta)
@@ -62,45 +65,106 @@ def free_decay_command(J, K, c_mean, c_delta, fk_mean, fk_delta, fs_mean, fs_del
         record = record.replace(meta={"units": {"x": "m", "u": "N", "v": "m/s"}})
     record = measure(record, noise_std=noise, counts_per_rev=counts_per_rev,
                      counts_per_unit=counts_per_metre, rng=seed)
-    path = write_record(record, out, overwrite=force)
+    path = write_record(record, out, overwrite=overwrite or force_alias)
     stuck = f", stuck at t = {result.stuck_at:.4g} s" if result.stuck_at is not None else ""
     click.echo(f"wrote {path} ({record.n} samples, {result.n_reversals} reversals{stuck})")
 
 
 @click.command("logdec")
-@click.argument("files", nargs=-1, required=True,
-                type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]...")
 @click.option("--mass", "--J", "mass", type=float, default=None,
               help="Known mass or inertia J [kg or kg·m²].")
 @click.option("--stiffness", "--K", "stiffness", type=float, default=None,
               help="Known stiffness K [N/m or N·m/rad].")
-@click.option("--method", type=click.Choice(["lsq", "thesis", "thesis-printed"]),
-              default="lsq", show_default=True,
-              help="lsq: all peaks and times (several FILES are fitted jointly); thesis: "
-                   "corrected closed forms (2.169)-(2.175); thesis-printed: as printed.")
-@click.option("--json", "as_json", is_flag=True, help="Print the estimate as JSON.")
-@click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Save a figure of the record, its peaks and the fitted envelope (PNG).")
-@click.option("--force", is_flag=True, help="Overwrite an existing figure file.")
+@click.option("--method", type=click.Choice(["oe", "peaks", "lsq", "thesis", "thesis-printed"]),
+              default="oe", show_default=True,
+              help="oe: whole-record output-error fit of every sample (near the Cramér-Rao "
+                   "bound); peaks (alias lsq): least-squares log decrement of all peaks and "
+                   "times; thesis: corrected closed forms (2.169)-(2.175); thesis-printed: as "
+                   "printed. Several FILES are fitted jointly by oe and peaks.")
+@click.option("--x-ref", type=float, default=0.0, show_default=True,
+              help="Position of the spring's zero [m or rad] (oe; a constant offset is not "
+                   "identifiable from a free decay).")
+@click.option("--drift", is_flag=True, help="Fit a slow linear drift of the position (oe).")
+@click.option("--quantisation", default="auto", show_default=True,
+              help="Encoder step [m or rad] for the bootstrap error bars (oe): 'auto' "
+                   "detects it, 'none' treats the noise as white.")
+@click.option("--bootstrap", type=int, default=25, show_default=True,
+              help="Bootstrap repeats for quantised records (oe).")
+@click.option("--seed", type=int, default=None, help="Seed of the bootstrap (oe).")
+@click.option("--check-window", is_flag=True,
+              help="Refit without the last 20 % of each window and warn when a parameter "
+                   "moves by more than 3 standard errors.")
+@record_options
+@output_options
 @clean_errors
-def logdec_command(files, mass, stiffness, method, as_json, figure, force):
-    """Identify asymmetric viscous and kinetic friction from free-decay FILES."""
-    records = [read_record(f) for f in files]
-    if method == "lsq":
-        est = estimate_log_decrement(records, mass=mass, stiffness=stiffness)
-    else:
-        if len(records) > 1:
-            raise click.UsageError("the thesis formulas take one file; use --method lsq")
-        est = estimate_log_decrement_thesis(records[0], corrected=(method == "thesis"),
-                                            mass=mass, stiffness=stiffness)
-    if figure is not None:
-        from driveid.report.figures import save_figure
+def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, bootstrap, seed,
+                   check_window, record_opts, output_opts):
+    """Identify asymmetric viscous and kinetic friction from free-decay FILES.
 
-        save_figure(est.plot(record=records), figure, overwrite=force)
-    if as_json:
-        click.echo(json.dumps(est.to_dict(), indent=2))
+    Each FILE may carry its own window, e.g. run.csv@2:30 [s].
+    """
+    raw = record_opts.read_all(files)
+    if method in ("thesis", "thesis-printed") and len(raw) > 1:
+        raise click.UsageError("the thesis formulas take one file; use --method oe or peaks")
+    if method == "oe":
+        # the whole-record fit takes any increasing timeline: no resampling
+        records = raw
+        q = _quantisation(quantisation)
+
+        def fit(recs):
+            from driveid.commands._progress import progress_bar
+            from driveid.identify.output_error import estimate_output_error
+
+            with progress_bar(bootstrap, "bootstrap refits (encoder records)",
+                              quiet=output_opts.quiet) as bar:
+                return estimate_output_error(
+                    recs, mass=mass, stiffness=stiffness, x_ref=x_ref, drift=drift,
+                    quantisation=q, bootstrap=bootstrap, rng=seed,
+                    progress=lambda done, total: bar.update(1))
+
+        def figure():
+            from driveid.validate import compare
+
+            return compare(records[0], est, index=0).plot()
     else:
-        click.echo(f"method: {est.method}   peaks: {est.diagnostics.get('n_peaks')}")
-        click.echo(est.table())
-        if figure is not None:
-            click.echo(f"figure: {figure}")
+        records = [r.resampled_uniform(purpose="peak refinement") for r in raw]
+
+        def fit(recs):
+            if method in ("lsq", "peaks"):
+                return estimate_log_decrement(recs, mass=mass, stiffness=stiffness)
+            return estimate_log_decrement_thesis(recs[0], corrected=(method == "thesis"),
+                                                 mass=mass, stiffness=stiffness)
+
+        def figure():
+            from driveid.commands._output import plot_of
+
+            return plot_of(est, records)
+
+    est = fit(records)
+    if check_window:
+        from driveid.identify._plausibility import check_refit_stability
+
+        shorter = [r.crop(None, r.t[0] + 0.8 * r.duration) for r in records]
+        est = check_refit_stability(est, fit(shorter),
+                                    change="the last 20 % of the window dropped")
+    counts = (f"samples: {est.diagnostics.get('n_samples')}" if method == "oe"
+              else f"peaks: {est.diagnostics.get('n_peaks')}")
+    emit(est, output_opts, records=records, figure=figure,
+         header=f"method: {est.method}   {counts}")
+
+
+def _quantisation(text: str) -> float | str | None:
+    """``auto``, ``none`` or an encoder step [m or rad] for ``estimate_output_error``."""
+    value = text.strip().lower()
+    if value in ("auto", "none"):
+        return None if value == "none" else "auto"
+    try:
+        step = float(value)
+    except ValueError:
+        raise click.BadParameter(f"give 'auto', 'none' or a step in m or rad; got {text!r}",
+                                 param_hint="--quantisation") from None
+    if not (step > 0 and step < float("inf")):
+        raise click.BadParameter(f"the encoder step must be positive and finite; got {text!r}",
+                                 param_hint="--quantisation")
+    return step

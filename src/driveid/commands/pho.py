@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._output import emit, output_options, plot_of
+from driveid.commands._progress import progress_bar
+from driveid.commands._record_options import RecordOptions, record_options
 from driveid.errors import ParameterError
 from driveid.experiment import SimulatedPlant, run_pho_campaign
+from driveid.experiment.pho import MAX_RUNS
+from driveid.io.consistency import check_count
 from driveid.io.manifest import read_manifest
-from driveid.sim.presets import PRESETS, preset
+from driveid.sim.presets import PRESETS, preset, preset_units
 
 __all__ = ["pho_group", "pho_run_command", "pho_analyse_command", "preset_campaign_defaults"]
 
@@ -33,6 +37,13 @@ def _round(value: float) -> float:
     if value == 0:
         return 0.0
     return float(f"{value:.1g}")
+
+
+#: Default campaign as fractions of the preset's own gains (help texts are built from these).
+P_FACTORS = (0.4, 0.6, 0.8)
+D_START_FACTOR = 0.3
+D_STEP_FACTOR = 0.1
+N_D_DEFAULT = 3
 
 
 def preset_campaign_defaults(name: str) -> dict:
@@ -63,9 +74,35 @@ def preset_campaign_defaults(name: str) -> dict:
     fb = params.feedback
     fk = sum(b.fk_mean for b in params.bodies)
     x0 = _round(50.0 * fk / fb.P) if fk > 0 else 1.0
-    return {"P_values": [round(fb.P * f, 12) for f in (0.4, 0.6, 0.8)],
-            "D_start": round(0.3 * fb.D, 12), "D_step": round(0.1 * fb.D, 12), "n_D": 3,
+    return {"P_values": [round(fb.P * f, 12) for f in P_FACTORS],
+            "D_start": round(D_START_FACTOR * fb.D, 12),
+            "D_step": round(D_STEP_FACTOR * fb.D, 12), "n_D": N_D_DEFAULT,
             "x0": x0, "duration": 5.0}
+
+
+def _asymmetric(name: str, c_delta: float | None, fk_delta: float | None):
+    """Return the preset's drive with asymmetric friction on the body the feedback drives."""
+    import dataclasses
+
+    params = preset(name)
+    if c_delta is None and fk_delta is None:
+        return params
+    index = params.feedback.body if params.feedback is not None else 0
+    changes = {k: v for k, v in (("c_delta", c_delta), ("fk_delta", fk_delta)) if v is not None}
+    bodies = list(params.bodies)
+    body = bodies[index]
+    for option, delta, mean in (("--c-delta", c_delta, body.c_mean),
+                                ("--fk-delta", fk_delta, body.fk_mean)):
+        if delta is not None and abs(delta) > mean:
+            # beyond the mean, one direction's friction would push the body
+            raise ParameterError(
+                f"{option} must lie within ±{mean:g} (the {name} preset's mean value), so that "
+                f"friction opposes motion in both directions; got {delta:g}")
+    if fk_delta is not None and not body.fs_delta:
+        # the presets set static = kinetic friction; keep it so in each direction
+        changes["fs_delta"] = fk_delta
+    bodies[index] = dataclasses.replace(body, **changes)  # validated by BodyParams
+    return dataclasses.replace(params, bodies=tuple(bodies))
 
 
 @click.group("pho")
@@ -80,15 +117,17 @@ def pho_group():
               help="Campaign folder to create; refused if it already holds a campaign.")
 @click.option("--P", "P_text", default=None,
               help="Proportional gains P_i [N·m/rad or N/m], comma-separated (default: the "
-                   "preset's P × 1, 1.2, 1.4).")
+                   f"preset's P × {', '.join(f'{f:g}' for f in P_FACTORS)}).")
 @click.option("--P-range", "P_range", type=(float, float, int), default=None,
               metavar="START STEP N", help="N equally stepped proportional gains.")
 @click.option("--D-start", "D_start", type=float, default=None,
-              help="First derivative gain [N·m·s/rad or N·s/m] (default: the preset's D).")
+              help="First derivative gain [N·m·s/rad or N·s/m] (default: "
+                   f"{D_START_FACTOR:g} × the preset's D).")
 @click.option("--D-step", "D_step", type=float, default=None,
-              help="Derivative gain step [N·m·s/rad or N·s/m] (default: 0.2 × the preset's D).")
+              help="Derivative gain step [N·m·s/rad or N·s/m] (default: "
+                   f"{D_STEP_FACTOR:g} × the preset's D).")
 @click.option("--n-D", "n_D", type=int, default=None,
-              help="Number of derivative gains per P (default 3).")
+              help=f"Number of derivative gains per P (default {N_D_DEFAULT}).")
 @click.option("--x0", type=float, default=None,
               help="Initial displacement magnitude [rad or m]; each run goes from +x0 and -x0 "
                    "(default: 50·fk/P of the preset, one digit).")
@@ -108,9 +147,22 @@ def pho_group():
               help="Fewest oscillation peaks for an accepted run.")
 @click.option("--K", "K", type=float, default=None,
               help="Stiffness known a priori, written to the manifest (e.g. 0).")
+@click.option("--resume", is_flag=True,
+              help="Continue an interrupted campaign in --out (same options): the runs "
+                   "listed are kept, the others are run.")
+@click.option("--max-runs", type=int, default=MAX_RUNS, show_default=True,
+              help="Most runs a campaign may plan (a guard against a mistyped --n-D).")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option("--c-delta", type=float, default=None,
+              help="Make the driven body's viscous friction asymmetric: c_delta (signed) "
+                   "[N·m·s/rad or N·s/m]; |c_delta| <= c_mean.")
+@click.option("--fk-delta", type=float, default=None,
+              help="Make the driven body's kinetic friction asymmetric: fk_delta (signed) "
+                   "[N·m or N]; |fk_delta| <= fk_mean.")
 @clean_errors
 def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, duration, fs,
-                    noise, counts_per_rev, counts_per_metre, seed, abort_limit, min_peaks, K):
+                    noise, counts_per_rev, counts_per_metre, seed, abort_limit, min_peaks, K,
+                    resume, max_runs, quiet, c_delta, fk_delta):
     """Run a PHO campaign: every (P, D) of the grid from +x0 and -x0, written to --out."""
     defaults = preset_campaign_defaults(plant_name)
     if P_text is not None and P_range is not None:
@@ -124,19 +176,23 @@ def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, 
         P_values = [start + i * step for i in range(n)]
     else:
         P_values = defaults["P_values"]
-    plant = SimulatedPlant(plant_name, noise_std=noise, counts_per_rev=counts_per_rev,
-                           counts_per_unit=counts_per_metre, seed=seed)
+    plant = SimulatedPlant(_asymmetric(plant_name, c_delta, fk_delta), noise_std=noise,
+                           counts_per_rev=counts_per_rev, counts_per_unit=counts_per_metre,
+                           seed=seed, units=preset_units(plant_name), name=plant_name)
     D_start = defaults["D_start"] if D_start is None else D_start
     D_step = defaults["D_step"] if D_step is None else D_step
     n_D = defaults["n_D"] if n_D is None else n_D
     x0 = defaults["x0"] if x0 is None else x0
     duration = defaults["duration"] if duration is None else duration
     n_runs = 2 * len(P_values) * n_D
-    with click.progressbar(length=n_runs, label="PHO runs", file=sys.stderr) as bar:
+    check_count(n_runs, max_runs, "runs in the campaign (2 x P values x D values)",
+                override="--max-runs N")  # before the progress bar opens
+    with progress_bar(n_runs, "PHO runs", quiet=quiet, unit="run") as bar:
         campaign = run_pho_campaign(
             plant, P_values=P_values, D_start=D_start, D_step=D_step, n_D=n_D, x0=x0,
             duration=duration, fs=fs, out_dir=out, abort_limit=abort_limit,
-            min_peaks=min_peaks, K=K, progress=lambda k, n, run: bar.update(1))
+            min_peaks=min_peaks, K=K, progress=lambda k, n, run: bar.update(1),
+            resume=resume, max_runs=max_runs)
     units = plant.units
     click.echo(f"{'run':>4} {'P':>9} {'D':>9} {'x0 [' + units + ']':>10} {'peaks':>5} "
                f"{'settled [s]':>11}  result")
@@ -150,9 +206,23 @@ def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, 
                f"{campaign.manifest_path}")
 
 
+_RUN_META = ("P", "D", "x0", "x0_sign", "delay", "run_index", "units")
+
+
+def _reread(records: list, record_opts: RecordOptions) -> list:
+    """Read each run's file again with the record options, keeping the run's gains."""
+    if record_opts == RecordOptions():
+        return records
+    out = []
+    for rec in records:
+        new = record_opts.read(rec.meta["source"])
+        keep = {k: rec.meta[k] for k in _RUN_META if k in rec.meta and k != "units"}
+        out.append(new.replace(meta=keep))
+    return out
+
+
 @pho_group.command("analyse")
 @click.argument("path", type=click.Path(exists=True, path_type=Path))
-@click.option("--json", "as_json", is_flag=True, help="Print the estimate as JSON.")
 @click.option("--delay", type=float, default=None,
               help="Loop delay [s], overriding the manifest's delay_s.")
 @click.option("--estimate-delay", is_flag=True,
@@ -161,13 +231,23 @@ def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, 
               help="Analyse as if there were no delay (delay = 0), as the thesis's Table 5.2.")
 @click.option("--K", "K", type=float, default=None,
               help="Known stiffness [N·m/rad or N/m] (e.g. 0), overriding the manifest's K.")
+@click.option("--allow-outside", is_flag=True,
+              help="Read record files the manifest names outside its own folder (only for a "
+                   "manifest you trust).")
+@record_options
+@output_options
 @clean_errors
-def pho_analyse_command(path, as_json, delay, estimate_delay, uncompensated, K):
-    """Identify J, C, K and asymmetric friction from a campaign folder or manifest PATH."""
+def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_outside,
+                        record_opts, output_opts):
+    """Identify J, C, K and asymmetric friction from a campaign folder or manifest PATH.
+
+    The record options apply to every run file (e.g. --t-start 0.2 drops a start transient,
+    --position NAME picks the column of hand-written runs).
+    """
     if sum([delay is not None, estimate_delay, uncompensated]) > 1:
         raise click.UsageError("give at most one of --delay, --estimate-delay, --uncompensated")
-    manifest = read_manifest(path)
-    records = manifest.load_records()
+    manifest = read_manifest(path, allow_outside=allow_outside)
+    records = _reread(manifest.load_records(), record_opts)
     if not records:
         raise ParameterError(
             f"no accepted run in {path}; every run was rejected (see the \"reason\" entries "
@@ -179,18 +259,11 @@ def pho_analyse_command(path, as_json, delay, estimate_delay, uncompensated, K):
     if delay is not None and not (math.isfinite(delay) and delay >= 0):
         raise click.BadParameter(f"must be >= 0 [s]; got {delay}", param_hint="--delay")
     K_known = manifest.K if K is None else K
-    try:
-        from driveid.identify.pho import estimate_pho_records
-    except ImportError:
-        raise click.ClickException(
-            "driveid.identify.pho.estimate_pho_records is not available in this version"
-        ) from None
+    from driveid.identify.pho import estimate_pho_records
+
     est = estimate_pho_records(records, delay=delay, K_known=K_known, units=manifest.units)
-    if as_json:
-        click.echo(est.to_json())
-    else:
-        n_rej = len(manifest.runs) - len(records)
-        how = ("uncompensated (delay 0)" if uncompensated else
-               "delay estimated" if delay is None else f"delay {delay:g} s")
-        click.echo(f"{len(records)} accepted run(s), {n_rej} rejected; {how}")
-        click.echo(est.table())
+    n_rej = len(manifest.runs) - len(records)
+    how = ("uncompensated (delay 0)" if uncompensated else
+           "delay estimated" if delay is None else f"delay {delay:g} s")
+    emit(est, output_opts, records=records, figure=lambda: plot_of(est, records),
+         header=f"{len(records)} accepted run(s), {n_rej} rejected; {how}")

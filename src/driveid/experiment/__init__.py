@@ -1,5 +1,11 @@
-"""Experiment protocols that drive a plant: PHO campaigns and the plant adapters."""
+"""Experiment protocols that drive a plant: PHO campaigns, excitation runs, plant adapters."""
 
+from driveid.experiment.excitation import (
+    ExcitablePlant,
+    ExcitationRuns,
+    SimulatedExcitationPlant,
+    run_excitations,
+)
 from driveid.experiment.pho import (
     Campaign,
     CampaignRun,
@@ -20,4 +26,8 @@ __all__ = [
     "assess_run",
     "run_pho_campaign",
     "settle_time",
+    "ExcitablePlant",
+    "SimulatedExcitationPlant",
+    "ExcitationRuns",
+    "run_excitations",
 ]

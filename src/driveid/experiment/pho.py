@@ -16,16 +16,24 @@ Decisions
 * Every run is written, rejected ones too (``accepted: false`` with the reason); analyses
   skip them.
 * A folder that already holds a manifest is refused (:class:`~driveid.errors.OverwriteError`
-  naming the fix: another ``--out``); so is any record file name that already exists,
-  checked before the first run. The thesis's programme overwrote silently (its footnote 81).
-* The manifest is rewritten after every run (``"complete": false`` until the end), so an
-  interrupted campaign keeps the summary of what it measured.
+  naming the fixes: another ``--out``, or ``--resume`` for an interrupted campaign); so is
+  any record file name that already exists, checked before the first run. The thesis's
+  programme overwrote silently (its footnote 81). A campaign folder that is a symbolic link
+  is refused: the records would land somewhere the user did not name.
+* Every file is written atomically (:mod:`driveid.io.safe_write`): a record has a temporary
+  name until it is complete, so an interrupted run leaves no partial record. The manifest is
+  rewritten after every run (``"complete": false`` until the end), so an interrupted
+  campaign keeps the summary of what it measured, and ``resume=True`` (CLI ``--resume``)
+  continues it: the runs listed are kept, the others are run, with the same protocol.
+* Absurd requests are refused before the first run: more than ``max_runs`` runs (default
+  :data:`MAX_RUNS`), or records that would not fit in memory.
 """
 
 from __future__ import annotations
 
 import datetime
 import math
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,15 +42,30 @@ import numpy as np
 
 from driveid.errors import DriveIdError, OverwriteError, ParameterError
 from driveid.experiment.plant import Plant
-from driveid.io.files import write_record
-from driveid.io.manifest import MANIFEST_NAME, Manifest, ManifestRun, write_manifest
+from driveid.io.consistency import check_allocation, check_count
+from driveid.io.files import read_record, write_record
+from driveid.io.manifest import (
+    MANIFEST_NAME,
+    Manifest,
+    ManifestRun,
+    read_manifest,
+    write_manifest,
+)
 from driveid.io.record import Record
+from driveid.io.safe_write import TEMP_SUFFIX
 from driveid.signal.envelope import noise_std
 from driveid.signal.peaks import find_oscillation_peaks
 
 #: Default fewest peaks of an accepted run: what the log decrement of the analysis needs
 #: (``driveid.identify.logdec.MIN_PEAKS``; experiment does not import identify).
 MIN_DECAY_PEAKS = 5
+#: Most runs a campaign plans without an explicit ``max_runs`` (CLI ``--max-runs``): the
+#: thesis's largest campaign had a few hundred; 10 000 runs of 5 s are 14 h of testing.
+MAX_RUNS = 10_000
+#: Bytes held per sample while a run is simulated and checked (t, x, u, v and temporaries).
+_BYTES_PER_SAMPLE_RUN = 96
+#: Bytes kept per sample of every finished run (t, x, u, v in the returned Campaign).
+_BYTES_PER_SAMPLE_KEPT = 32
 
 __all__ = [
     "RunAssessment",
@@ -51,6 +74,7 @@ __all__ = [
     "settle_time",
     "assess_run",
     "run_pho_campaign",
+    "MAX_RUNS",
 ]
 
 
@@ -294,6 +318,8 @@ def run_pho_campaign(
     K: float | None = None,
     suffix: str = ".csv",
     progress: Callable[[int, int, CampaignRun], None] | None = None,
+    resume: bool = False,
+    max_runs: int = MAX_RUNS,
 ) -> Campaign:
     """Run a PHO campaign: every (P_i, D_j) from +x0 and -x0, checked, written, summarised.
 
@@ -319,7 +345,8 @@ def run_pho_campaign(
     fs : float
         Sampling rate [Hz].
     out_dir : str or Path
-        Campaign folder (created); must not already hold a manifest.
+        Campaign folder (created); must not already hold a manifest (unless ``resume``) and
+        must not be a symbolic link.
     abort_limit : float, optional
         Safety limit on ``|u|`` [N·m or N]; default twice the largest initial command,
         ``2 max|P| x0`` (a decaying oscillation stays near ``P x0``; a growing one trips it).
@@ -334,7 +361,15 @@ def run_pho_campaign(
     suffix : {".csv", ".npz", ".mat"}
         Record file format.
     progress : callable, optional
-        Called as ``progress(k, n_runs, run)`` after each run.
+        Called as ``progress(k, n_runs, run)`` after each run (also for the runs kept by
+        ``resume``).
+    resume : bool
+        Continue the interrupted campaign in ``out_dir`` (``"complete": false``): runs it
+        lists are read back, not repeated; a record written but not yet listed is run
+        again. The protocol (grid, x0, duration, fs, limits) must be the one it started
+        with. Without a campaign in ``out_dir`` it starts one.
+    max_runs : int
+        Most runs accepted [-]; default :data:`MAX_RUNS`.
 
     Returns
     -------
@@ -344,9 +379,12 @@ def run_pho_campaign(
     Raises
     ------
     OverwriteError
-        If ``out_dir`` already holds a manifest or a file the campaign would write.
+        If ``out_dir`` already holds a manifest (without ``resume``, or a complete one), or
+        a file the campaign would write.
     ParameterError
-        If the grid or a setting is invalid.
+        If the grid or a setting is invalid, ``out_dir`` is a symbolic link, the grid has
+        more than ``max_runs`` runs, the records would not fit in memory, or ``resume``
+        finds another protocol.
     """
     P_grid = _grid("P_values", P_values)
     if D_values is not None:
@@ -379,11 +417,34 @@ def run_pho_campaign(
     if suffix not in (".csv", ".npz", ".mat"):
         raise ParameterError(f'suffix must be ".csv", ".npz" or ".mat"; got {suffix!r}')
     out_dir = Path(out_dir)
+    if out_dir.is_symlink():
+        raise ParameterError(
+            f"--out {out_dir} is a symbolic link (to {os.readlink(out_dir)}); a campaign is "
+            "written only into a real folder, so that no record lands where it was not "
+            "asked; pass the folder the link points to")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise ParameterError(f"--out {out_dir} is a file; give a folder for the campaign")
     manifest_path = out_dir / MANIFEST_NAME
-    if manifest_path.exists():
-        raise OverwriteError(
-            f"{out_dir} already holds a campaign ({MANIFEST_NAME}); choose another folder "
-            "(CLI: --out) - earlier campaigns are never overwritten")
+    n_planned = 2 * len(P_grid) * len(D_grid)
+    check_count(n_planned, max_runs, f"the campaign plans 2 x {len(P_grid)} P x "
+                f"{len(D_grid)} D runs", override="max_runs=N (CLI: --max-runs N)")
+    n_samples = duration * fs + 1
+    check_allocation(n_samples * (_BYTES_PER_SAMPLE_RUN / _BYTES_PER_SAMPLE_KEPT + n_planned),
+                     _BYTES_PER_SAMPLE_KEPT,
+                     f"{n_planned} run(s) of duration {duration:g} s at fs {fs:g} Hz",
+                     override="shorten --duration, lower --fs or split the grid")
+    old = None
+    if os.path.lexists(manifest_path):
+        if not resume:
+            raise OverwriteError(
+                f"{out_dir} already holds a campaign ({MANIFEST_NAME}); choose another folder "
+                "(CLI: --out), or continue an interrupted one with resume=True (CLI: "
+                "--resume) - earlier campaigns are never overwritten")
+        old = read_manifest(manifest_path, check_files=False)
+        if old.complete:
+            raise OverwriteError(
+                f"{out_dir} holds a complete campaign ({len(old.runs)} runs); nothing to "
+                "resume; choose another folder (CLI: --out) for a new campaign")
     plan = []
     for P in P_grid:
         for D in D_grid:
@@ -392,18 +453,26 @@ def run_pho_campaign(
                 name = (f"run-{k:03d}-P{_fmt(P)}-D{_fmt(D)}-{'pos' if sign > 0 else 'neg'}"
                         f"{suffix}")
                 plan.append((k, P, D, sign * float(x0), out_dir / name))
-    clash = [str(p) for *_, p in plan if p.exists()]
+    protocol = {"P_values": P_grid, "D_values": D_grid, "x0": float(x0),
+                "duration": float(duration), "fs": float(fs), "abort_limit": abort_limit,
+                "min_peaks": min_peaks, "settle_tol": settle_tol,
+                "settle_window": settle_window, "order": "P, then D, then +x0/-x0"}
+    listed: dict[str, ManifestRun] = {}
+    if old is not None:
+        _check_same_protocol(old, protocol, out_dir)
+        listed = {r.file: r for r in old.runs}
+        _remove_leftovers(out_dir, [p.name for *_, p in plan])
+    clash = [str(p) for *_, p in plan if os.path.lexists(p) and old is None]
     if clash:
         raise OverwriteError(
             f"{out_dir} already holds {len(clash)} file(s) this campaign would write (e.g. "
             f"{clash[0]}); choose another folder (CLI: --out)")
     out_dir.mkdir(parents=True, exist_ok=True)
-    protocol = {"P_values": P_grid, "D_values": D_grid, "x0": float(x0),
-                "duration": float(duration), "fs": float(fs), "abort_limit": abort_limit,
-                "min_peaks": min_peaks, "settle_tol": settle_tol,
-                "settle_window": settle_window, "order": "P, then D, then +x0/-x0"}
-    created = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+    created = (old.created if old is not None and old.created else
+               datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"))
     delay = getattr(plant, "delay", None)
+    if delay is None and old is not None:
+        delay = old.delay_s
     runs: list[CampaignRun] = []
 
     def manifest(complete: bool) -> Manifest:
@@ -419,6 +488,12 @@ def run_pho_campaign(
 
     delay_used = delay
     for k, P, D, start, path in plan:
+        entry = listed.get(path.name)
+        if entry is not None and path.is_file() and not path.is_symlink():
+            runs.append(_kept_run(k, P, D, start, path, entry))
+            if progress is not None:
+                progress(k, len(plan), runs[-1])
+            continue
         record = plant.run_pd(P=P, D=D, x0=start, duration=duration, fs=fs,
                               abort_limit=abort_limit)
         if delay_used is None and record.meta.get("delay") is not None:
@@ -429,14 +504,67 @@ def run_pho_campaign(
             "run_index": k, "P": P, "D": D, "x0": start, "x0_sign": 1 if start > 0 else -1,
             "accepted": assessment.accepted, "reason": assessment.reason,
             "settled_at": assessment.settled_at})
-        write_record(record, path)
+        # a final-named file that is not listed is this campaign's own run, written just
+        # before an interruption and never summarised: it is run again and replaced
+        write_record(record, path, overwrite=old is not None)
         run = CampaignRun(index=k, P=P, D=D, x0=start, record=record, path=path,
                           assessment=assessment)
         runs.append(run)
         # rewritten after every run: an interrupted campaign keeps its summary
-        write_manifest(manifest(False), manifest_path, overwrite=k > 1)
+        write_manifest(manifest(False), manifest_path,
+                       overwrite=os.path.lexists(manifest_path))
         if progress is not None:
             progress(k, len(plan), run)
     final = manifest(True)
     write_manifest(final, manifest_path, overwrite=True)
     return Campaign(runs=tuple(runs), manifest=final, manifest_path=manifest_path)
+
+
+_RESUME_KEYS = ("P_values", "D_values", "x0", "duration", "fs", "abort_limit", "min_peaks",
+                "settle_tol", "settle_window")
+
+
+def _check_same_protocol(old: Manifest, protocol: dict, out_dir: Path) -> None:
+    """Refuse to resume a campaign with other settings than it started with."""
+    before = dict(old.protocol)
+    differ = [f"{key} {before.get(key)!r} (campaign) vs {protocol[key]!r} (now)"
+              for key in _RESUME_KEYS if before.get(key) != protocol[key]]
+    if differ:
+        raise ParameterError(
+            f"cannot resume the campaign in {out_dir} with other settings: "
+            f"{'; '.join(differ)}; repeat the options it was started with (see the "
+            f"\"protocol\" of its {MANIFEST_NAME}), or start a new campaign in another folder")
+
+
+def _remove_leftovers(out_dir: Path, names: list[str]) -> None:
+    """Delete temporary files of this campaign's records left by a killed process."""
+    if not out_dir.is_dir():
+        return
+    wanted = set(names)
+    for item in out_dir.iterdir():
+        name = item.name
+        if not (name.startswith(".") and TEMP_SUFFIX in name):
+            continue
+        base = name[1:].split(".")
+        # ".run-001-...-pos.csv.<random>.part.csv" -> "run-001-...-pos.csv"
+        for cut in range(len(base), 0, -1):
+            if ".".join(base[:cut]) in wanted:
+                if item.is_file() or item.is_symlink():
+                    item.unlink()
+                break
+
+
+def _kept_run(k: int, P: float, D: float, start: float, path: Path,
+              entry: ManifestRun) -> CampaignRun:
+    """Read back a run listed by the manifest of an interrupted campaign."""
+    record = read_record(path)
+    for key, value in (("P", P), ("D", D), ("x0", start)):
+        own = record.meta.get(key)
+        if own is not None and not math.isclose(float(own), value, rel_tol=1e-9):
+            raise ParameterError(
+                f"cannot resume: {path.name} holds {key} = {own} but the campaign plans "
+                f"{key} = {value}; the folder was edited; start a new campaign")
+    assessment = RunAssessment(entry.accepted, entry.reason, entry.n_peaks or 0,
+                               entry.settled_at)
+    return CampaignRun(index=k, P=P, D=D, x0=start, record=record, path=path,
+                       assessment=assessment)

@@ -1,17 +1,35 @@
-"""The :class:`Estimate`: what every identification method returns."""
+"""The :class:`Estimate`: what every identification method returns, and its result schema.
+
+Every ``Estimate.to_dict()`` and every command's ``--json`` follow one schema,
+``driveid-result/1`` (documented in ``docs/result-schema.md``)::
+
+    {"driveid": "0.2.0", "schema": "driveid-result/1", "command": ["driveid", ...] or null,
+     "inputs": [{"path", "sha256", "rows", "columns", "window", "units", ...}],
+     "method": "logdec-lsq",
+     "parameters": {"J": {"value": 1.0, "stderr": null, "unit": "kg·m²", "fixed": true}, ...},
+     "covariance": {"names": [...], "matrix": [[...]]} or null,
+     "diagnostics": {...}, "warnings": [...], "data_used": {...}}
+
+``data_used`` holds only short entries unless ``series=True``.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
 
 from driveid._json import to_jsonable
 
-__all__ = ["Parameter", "Estimate"]
+__all__ = ["Parameter", "Estimate", "SCHEMA", "inputs_of"]
+
+#: Name and version of the result schema; changes that break readers bump the number.
+SCHEMA = "driveid-result/1"
+_SHORT = 16  # longest array kept in data_used without series=True [-]
 
 
 @dataclass(frozen=True)
@@ -27,8 +45,9 @@ class Parameter:
     unit : str
         SI unit, e.g. ``"N·m"``; ``"-"`` for dimensionless.
     fixed : bool
-        True for a value that was given (``--mass 1``), not estimated; its ``stderr`` is
-        ``nan`` and JSON shows ``"fixed": true, "stderr": null`` (never a misleading 0).
+        True for a value that was given (``--mass 1``), not estimated. Its ``stderr`` is
+        ``nan`` or 0 (estimators that propagate errors keep 0 internally); JSON always shows
+        ``"fixed": true, "stderr": null`` (never a misleading 0) and the table ``(given)``.
     """
 
     value: float
@@ -37,15 +56,36 @@ class Parameter:
     fixed: bool = False
 
     def to_dict(self) -> dict[str, Any]:
-        """Return ``{"value", "stderr", "unit"}`` with NaN written as ``None``."""
+        """Return ``{"value", "stderr", "unit", "fixed"}``; NaN and a fixed stderr are ``None``."""
         return {
             "value": _finite_or_none(self.value),
-            "stderr": _finite_or_none(self.stderr),
+            "stderr": None if self.fixed else _finite_or_none(self.stderr),
             "unit": self.unit,
+            "fixed": bool(self.fixed),
         }
 
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Parameter:
+        """Return the parameter written by :meth:`to_dict` (``None`` becomes ``nan``).
 
-@dataclass(frozen=True)
+        Parameters
+        ----------
+        data : mapping
+            ``{"value", "stderr", "unit", "fixed"}``.
+
+        Returns
+        -------
+        Parameter
+            The parameter.
+        """
+        def number(v: Any) -> float:
+            return math.nan if v is None else float(v)
+
+        return cls(number(data.get("value")), number(data.get("stderr")),
+                   str(data.get("unit", "-")), bool(data.get("fixed", False)))
+
+
+@dataclass(frozen=True, repr=False)
 class Estimate:
     """Parameter values with standard errors, the method, the data used and diagnostics.
 
@@ -103,24 +143,142 @@ class Estimate:
         """Return the standard error of parameter ``name``."""
         return self[name].stderr
 
-    def to_dict(self) -> dict[str, Any]:
-        """Return a JSON-ready dict: ``method``, one key per parameter, diagnostics, warnings."""
-        out: dict[str, Any] = {"method": self.method}
-        for name, par in self.params.items():
-            out[name] = par.to_dict()
-        out["diagnostics"] = to_jsonable(dict(self.diagnostics))
-        out["warnings"] = list(self.warnings)
-        return out
+    def to_dict(self, series: bool = False, command: Sequence[str] | None = None
+                ) -> dict[str, Any]:
+        """Return the estimate in the result schema ``driveid-result/1`` (JSON-ready).
 
-    def to_json(self, **kwargs: Any) -> str:
-        """Serialise :meth:`to_dict` to a JSON string (``kwargs`` go to :func:`json.dumps`)."""
-        return json.dumps(self.to_dict(), **kwargs)
+        Parameters
+        ----------
+        series : bool
+            Include long arrays of ``data_used`` (time series, peak lists); otherwise only
+            scalars and arrays of at most 16 values are kept.
+        command : sequence of str, optional
+            The command line that produced the estimate (``sys.argv``); ``null`` if None.
+
+        Returns
+        -------
+        dict
+            Keys ``driveid``, ``schema``, ``command``, ``inputs``, ``method``,
+            ``parameters``, ``covariance``, ``diagnostics``, ``warnings``, ``data_used``.
+        """
+        from driveid import __version__
+
+        covariance = None
+        if self.covariance is not None:
+            covariance = {"names": list(self.covariance["names"]),
+                          "matrix": to_jsonable(self.covariance["matrix"])}
+        data_used = {k: v for k, v in self.data_used.items() if series or _is_short(v)}
+        return {
+            "driveid": __version__,
+            "schema": SCHEMA,
+            "command": None if command is None else [str(a) for a in command],
+            "inputs": to_jsonable([dict(i) for i in self.inputs]),
+            "method": self.method,
+            "parameters": {name: par.to_dict() for name, par in self.params.items()},
+            "covariance": covariance,
+            "diagnostics": to_jsonable(dict(self.diagnostics)),
+            "warnings": list(self.warnings),
+            "data_used": to_jsonable(data_used),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Estimate:
+        """Return the estimate written by :meth:`to_dict` (a round trip up to JSON types).
+
+        Parameters
+        ----------
+        data : mapping
+            A ``driveid-result/1`` dict (e.g. ``json.load`` of a ``--json`` output).
+
+        Returns
+        -------
+        Estimate
+            Parameters, covariance (matrix as ndarray), inputs, diagnostics, warnings and
+            the ``data_used`` that was written.
+
+        Raises
+        ------
+        ValueError
+            If ``data`` is not of schema ``driveid-result/1``.
+        """
+        import numpy as np
+
+        schema = data.get("schema")
+        if schema != SCHEMA:
+            raise ValueError(
+                f"not a driveid result of schema {SCHEMA!r}: got schema {schema!r}; read a "
+                "file written by --json of this driveid version")
+        covariance = data.get("covariance")
+        if covariance is not None:
+            covariance = {"names": list(covariance["names"]),
+                          "matrix": np.array(covariance["matrix"], dtype=float)}
+        return cls(
+            method=str(data["method"]),
+            params={k: Parameter.from_dict(v) for k, v in data["parameters"].items()},
+            data_used=dict(data.get("data_used") or {}),
+            diagnostics=dict(data.get("diagnostics") or {}),
+            warnings=tuple(data.get("warnings") or ()),
+            covariance=covariance,
+            inputs=tuple(dict(i) for i in data.get("inputs") or ()),
+        )
+
+    def to_json(self, series: bool = False, command: Sequence[str] | None = None,
+                **kwargs: Any) -> str:
+        """Serialise :meth:`to_dict` to a JSON string.
+
+        Parameters
+        ----------
+        series : bool
+            Include long arrays (see :meth:`to_dict`).
+        command : sequence of str, optional
+            The command line, kept as ``"command"``.
+        **kwargs
+            Passed to :func:`json.dumps` (e.g. ``indent=2``).
+
+        Returns
+        -------
+        str
+            Standard JSON (NaN written as ``null``).
+        """
+        return json.dumps(self.to_dict(series=series, command=command), **kwargs)
+
+    def with_inputs(self, records: Sequence[Any]) -> Estimate:
+        """Return a copy whose ``inputs`` describe ``records`` (from their ``meta``).
+
+        Parameters
+        ----------
+        records : sequence of Record
+            The records the estimate was computed from, in order.
+
+        Returns
+        -------
+        Estimate
+            The same estimate with provenance filled in.
+        """
+        return dataclasses.replace(self, inputs=tuple(inputs_of(records)))
+
+    def with_warnings(self, *messages: str) -> Estimate:
+        """Return a copy with ``messages`` appended to the warnings (duplicates dropped).
+
+        Parameters
+        ----------
+        *messages : str
+            Reasons to trust the estimate less.
+
+        Returns
+        -------
+        Estimate
+            The same estimate with more warnings.
+        """
+        new = tuple(m for m in dict.fromkeys(messages) if m not in self.warnings)
+        return dataclasses.replace(self, warnings=self.warnings + new) if new else self
 
     def table(self) -> str:
         """Return a plain-text table: name, value ± standard error, unit."""
         rows = [("parameter", "value", "std. error", "unit")]
         for name, par in self.params.items():
-            rows.append((name, f"{par.value:.6g}", f"{par.stderr:.3g}", par.unit))
+            error = "(given)" if par.fixed else f"{par.stderr:.3g}"
+            rows.append((name, f"{par.value:.6g}", error, par.unit))
         widths = [max(len(r[i]) for r in rows) for i in range(4)]
         lines = [
             "  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)) for row in rows
@@ -128,11 +286,171 @@ class Estimate:
         lines.insert(1, "  ".join("-" * w for w in widths))
         return "\n".join(lines)
 
-    def plot(self, record: Any = None, ax: Any = None) -> Any:
-        """Draw the estimate (over ``record`` where the method supports it); return the figure."""
-        from driveid.report.figures import plot_estimate
 
-        return plot_estimate(self, record=record, ax=ax)
+    def __repr__(self) -> str:
+        """Short and readable: method, parameters with standard errors, warning count."""
+        lines = [f"<Estimate {self.method}: {len(self.params)} parameters, "
+                 f"{len(self.warnings)} warning(s)>"]
+        lines += ["  " + line for line in self.table().splitlines()]
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        """HTML table for notebooks: value, standard error, 95 % interval, unit."""
+        from html import escape
+
+        rows = []
+        for name, par in self.params.items():
+            if par.fixed:
+                err, interval = "fixed (given)", ""
+            else:
+                low, high = self.interval(name)
+                err = f"{par.stderr:.3g}"
+                digits = _digits(par.value, par.stderr)
+                interval = (f"[{low:.{digits}g}, {high:.{digits}g}]" if math.isfinite(low)
+                            else "")
+            rows.append(f"<tr><td>{escape(name)}</td><td>{par.value:.6g}</td>"
+                        f"<td>{escape(err)}</td><td>{escape(interval)}</td>"
+                        f"<td>{escape(par.unit)}</td></tr>")
+        warn = "".join(f"<li>{escape(w)}</li>" for w in self.warnings)
+        return (f"<div><strong>{escape(self.method)}</strong>"
+                "<table><thead><tr><th>parameter</th><th>value</th><th>std. error</th>"
+                "<th>95 % interval</th><th>unit</th></tr></thead><tbody>"
+                + "".join(rows) + "</tbody></table>"
+                + (f"<p>warnings:</p><ul>{warn}</ul>" if warn else "") + "</div>")
+
+    def interval(self, name: str, level: float = 0.95) -> tuple[float, float]:
+        """Return the two-sided normal confidence interval of a parameter [its unit].
+
+        Parameters
+        ----------
+        name : str
+            Parameter name.
+        level : float
+            Coverage in (0, 1), e.g. 0.95.
+
+        Returns
+        -------
+        tuple of float
+            ``(value - z·stderr, value + z·stderr)``; ``(nan, nan)`` for a fixed parameter or
+            one without a standard error.
+
+        Raises
+        ------
+        ParameterError
+            If ``level`` is not in (0, 1).
+
+        Examples
+        --------
+        >>> est = Estimate("demo", {"K": Parameter(16.0, 0.5, "N·m/rad")})
+        >>> [round(v, 3) for v in est.interval("K")]
+        [15.02, 16.98]
+        """
+        from statistics import NormalDist
+
+        from driveid.errors import ParameterError
+
+        if not 0.0 < level < 1.0:
+            raise ParameterError(f"level must lie in (0, 1), e.g. 0.95; got {level}")
+        par = self[name]
+        if par.fixed or not math.isfinite(par.stderr):
+            return (math.nan, math.nan)
+        z = NormalDist().inv_cdf(0.5 + level / 2.0)
+        return (par.value - z * par.stderr, par.value + z * par.stderr)
+
+    def to_pandas(self) -> Any:
+        """Return the parameters as a DataFrame (one row each: value, stderr, unit, fixed).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Indexed by parameter name; ``attrs`` holds the rest of :meth:`to_dict`
+            (method, inputs, covariance, diagnostics, warnings), so
+            :meth:`from_pandas` round-trips it.
+        """
+        import pandas as pd
+
+        data = self.to_dict()
+        frame = pd.DataFrame.from_dict(data.pop("parameters"), orient="index")
+        frame.index.name = "parameter"
+        frame.attrs.update(data)
+        return frame
+
+    @classmethod
+    def from_pandas(cls, frame: Any) -> Estimate:
+        """Rebuild an estimate from :meth:`to_pandas` (inverse of it).
+
+        Parameters
+        ----------
+        frame : pandas.DataFrame
+            As returned by :meth:`to_pandas`.
+
+        Returns
+        -------
+        Estimate
+            The same parameters, method, covariance, diagnostics, warnings and inputs.
+        """
+        params = {}
+        for name, row in frame.iterrows():
+            params[str(name)] = {k: (None if _is_missing(v) else v) for k, v in row.items()}
+        return cls.from_dict({**frame.attrs, "parameters": params})
+
+
+def _digits(value: float, stderr: float) -> int:
+    """Significant digits that keep an interval's two bounds apart (two beyond the error)."""
+    if not (math.isfinite(stderr) and stderr > 0 and value != 0):
+        return 6
+    return max(3, min(15, int(math.floor(math.log10(abs(value) / stderr))) + 3))
+
+
+def _is_missing(value: Any) -> bool:
+    try:
+        return bool(value != value) or value is None
+    except (TypeError, ValueError):
+        return False
+
+
+def inputs_of(records: Sequence[Any]) -> list[dict[str, Any]]:
+    """Return the provenance entries of records for :attr:`Estimate.inputs`.
+
+    Parameters
+    ----------
+    records : sequence of Record
+        Records read by :func:`driveid.io.read_record` (or made in memory: path ``None``).
+
+    Returns
+    -------
+    list of dict
+        One ``{"path", "sha256", "rows", "columns", "window", "units", "units_in_file"}``
+        per record; ``columns`` maps record column -> file column, ``window`` is the time
+        span used [s], ``units`` the SI units after conversion.
+    """
+    out = []
+    for record in records:
+        meta = dict(record.meta)
+        window = [float(record.t[0]), float(record.t[-1])]  # the span used, after any crop
+        out.append({
+            "path": meta.get("source"),
+            "sha256": meta.get("sha256"),
+            "rows": meta.get("rows", record.n),
+            "columns": dict(meta.get("columns_used") or {c: c for c in record.columns}),
+            "window": [float(w) for w in window],
+            "units": {c: record.units[c] for c in record.columns if c in record.units},
+            "units_in_file": dict(meta.get("units_in_file") or {}),
+        })
+    return out
+
+
+def _is_short(value: Any) -> bool:
+    return _n_values(value) <= _SHORT
+
+
+def _n_values(value: Any) -> int:
+    if isinstance(value, Mapping):
+        return sum(_n_values(v) for v in value.values())
+    if isinstance(value, (list, tuple)):
+        return sum(_n_values(v) for v in value)
+    size = getattr(value, "size", None)
+    return int(size) if isinstance(size, (int,)) or hasattr(value, "shape") else 1
 
 
 def _finite_or_none(value: float) -> float | None:

@@ -75,6 +75,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.pho import delay_factors
 from driveid.io.record import Record
@@ -526,10 +527,10 @@ def _estimate(records, omega, P, D, delay, K_known, settle_tol, min_periods, met
         "J": Parameter(float(theta[0]), float(se[0]), spec["J"]),
         "c_mean": Parameter(float(theta[1]), float(se[1]), spec["c"]),
         "K": (Parameter(float(theta[2]), float(se[2]), spec["K"]) if K_known is None
-              else Parameter(float(K_known), 0.0, spec["K"])),
+              else Parameter(float(K_known), 0.0, spec["K"], fixed=True)),
     }
     if method == "forced-pho":
-        params["delay"] = Parameter(float(delay), delay_se, "s")
+        params["delay"] = Parameter(float(delay), delay_se, "s", fixed=not estimated)
     warnings = []
     distortion = np.array([f.response_distortion for f in fits])
     if distortion.max() > WARN_RESPONSE_DISTORTION:
@@ -577,6 +578,7 @@ def _estimate(records, omega, P, D, delay, K_known, settle_tol, min_periods, met
     )
 
 
+@plausibility_checked
 def estimate_forced_response(
     records: Record | Sequence[Record],
     *,
@@ -657,6 +659,7 @@ def estimate_forced_response(
                      "forced-response")
 
 
+@plausibility_checked
 def estimate_forced_pho(
     records: Record | Sequence[Record],
     *,

@@ -47,6 +47,7 @@ __all__ = [
     "FrictionMap",
     "BRANCH_MAPS",
     "steady_points",
+    "binned_points",
     "estimate_friction_map",
     "read_tro2021_steady_state",
     "TRO2021_NOMINAL_TORQUE",
@@ -78,7 +79,7 @@ def _coulomb_viscous(s: np.ndarray, fc: float, fv: float) -> np.ndarray:
         s, CoulombViscousParams(fk_mean=fc, fk_delta=0.0, c_mean=fv, c_delta=0.0))
 
 
-#: Branch maps fitted on speed magnitude: name -> (function of (|v|, *params), parameter
+#: Branch maps fitted on speed magnitude: name -> (function of (|v|, ``*params``), parameter
 #: names, thesis equation). Functions wrap :data:`driveid.models.friction.STATIC_MAPS`.
 BRANCH_MAPS: dict[str, tuple[Callable[..., np.ndarray], tuple[str, ...], str]] = {
     "coulomb_viscous": (_coulomb_viscous, ("Fc", "Fv"), "(2.155)"),
@@ -182,6 +183,81 @@ def steady_points(
     return points
 
 
+def binned_points(
+    record: Record,
+    *,
+    inertia: float,
+    bins: int = 20,
+    cutoff_hz: float | None = None,
+    min_fraction: float = 0.05,
+    min_per_bin: int = 20,
+) -> list[SteadySegment]:
+    """Friction points from non-steady motion: ``F − J·a`` binned by velocity per direction.
+
+    Parameters
+    ----------
+    record : Record
+        Position ``x`` [m or rad] (velocity ``v`` if present) and force ``u`` [N or N·m]
+        of a sinusoidal, triangular or any other test with a range of speeds.
+    inertia : float
+        Known or estimated inertia J [kg or kg·m²] (e.g. from ``estimate_idim``); >= 0.
+    bins : int
+        Velocity bins per direction [-], equal-count (quantiles of the speed); >= 3.
+    cutoff_hz : float, optional
+        Zero-phase low-pass before differentiating [Hz]; default ``fs/20``.
+    min_fraction : float
+        Speeds below this fraction of the top speed are left out [-] (near reversals the
+        friction is in its presliding/stiction regime, not on the map).
+    min_per_bin : int
+        Fewest samples per bin [-].
+
+    Returns
+    -------
+    list of SteadySegment
+        One point per bin (``start = stop = -1``): mean velocity and mean ``F − J·a``
+        with standard errors ``std/√n_eff`` (AR(1) effective sample count).
+
+    Raises
+    ------
+    RecordError
+        If the record has no force.
+    ParameterError
+        If ``inertia`` or ``bins`` is out of range.
+
+    Notes
+    -----
+    The equation of motion (2.155) with ``K = 0`` gives the friction as ``u − J·a``; at
+    every speed the map is the average over the samples at that speed, so plateaus are
+    not needed. An error ``δJ`` in the inertia adds ``δJ·a`` to each point; it averages
+    out where a bin holds accelerating and decelerating samples alike (sinusoids and
+    triangles do).
+    """
+    if record.u is None:
+        raise RecordError("a friction map needs the applied force or torque u; got a record "
+                          f"with columns {list(record.columns)}")
+    if not (math.isfinite(inertia) and inertia >= 0):
+        raise ParameterError(f"inertia must be >= 0 [kg or kg·m²]; got {inertia}")
+    if int(bins) != bins or bins < 3:
+        raise ParameterError(f"bins must be an integer >= 3; got {bins}")
+    fc = record.fs / 20.0 if cutoff_hz is None else cutoff_hz
+    _, v_x, a = differentiate(record.x, record.fs, cutoff_hz=fc)
+    v = np.asarray(record.v, float) if record.v is not None else v_x
+    force = np.asarray(record.u, float) - inertia * a
+    top = float(np.max(np.abs(v)))
+    points = []
+    for sign in (1.0, -1.0):
+        sel = np.flatnonzero(sign * v > min_fraction * top)
+        if sel.size < bins * min_per_bin:
+            continue
+        order = sel[np.argsort(np.abs(v[sel]))]
+        for chunk in np.array_split(order, int(bins)):
+            idx = np.sort(chunk)
+            vm, vs = segment_mean(v[idx])
+            fm, fse = segment_mean(force[idx])
+            points.append(SteadySegment(-1, -1, vm, vs, fm, fse, int(idx.size)))
+    return points
+
+
 def estimate_friction_map(
     data: Record | Sequence[Record] | Sequence[SteadySegment],
     *,
@@ -189,6 +265,8 @@ def estimate_friction_map(
     min_speeds: int = 3,
     velocity_unit: str | None = None,
     force_unit: str | None = None,
+    min_speed: float = 0.0,
+    max_speed: float = math.inf,
     **steady_kw: Any,
 ) -> FrictionMap:
     """Fit steady-velocity friction maps with separate + and − branches.
@@ -206,6 +284,8 @@ def estimate_friction_map(
         they have parameters and are skipped (with a warning) otherwise.
     velocity_unit, force_unit : str, optional
         Units for the result; default from the records (``x`` unit + "/s", ``u`` unit).
+    min_speed, max_speed : float
+        Keep only points whose speed lies in ``[min_speed, max_speed]`` [m/s or rad/s].
     **steady_kw
         Passed to :func:`steady_points`.
 
@@ -246,7 +326,11 @@ def estimate_friction_map(
         raise ParameterError(f"unknown friction map(s) {unknown}; use {sorted(BRANCH_MAPS)}")
     if int(min_speeds) != min_speeds or min_speeds < 3:
         raise ParameterError(f"min_speeds must be an integer >= 3; got {min_speeds}")
+    if not (0 <= min_speed <= max_speed):
+        raise ParameterError(f"need 0 <= min_speed <= max_speed [m/s or rad/s]; got "
+                             f"{min_speed}, {max_speed}")
     points, vu, fu = _collect(data, steady_kw)
+    points = [p for p in points if min_speed <= abs(p.velocity) <= max_speed]
     vu = velocity_unit or vu
     fu = force_unit or fu
     if not points:

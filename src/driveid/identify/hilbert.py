@@ -63,8 +63,10 @@ from scipy.ndimage import uniform_filter1d
 from scipy.optimize import least_squares
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
-from driveid.io.record import Record
+from driveid.io.record import Record, needs_uniform_sampling
+from driveid.signal._blas import with_one_blas_thread
 from driveid.signal.envelope import (
     analytic_signal,
     count_crossings,
@@ -320,6 +322,9 @@ def _feldman_mass(free_part: np.ndarray, force_part: np.ndarray) -> float:
     return 1.0 / inv_j
 
 
+@plausibility_checked
+@needs_uniform_sampling("the Hilbert transform")
+@with_one_blas_thread
 def estimate_hilbert(
     record: Record,
     *,
@@ -553,6 +558,9 @@ def _crossings(x: np.ndarray, t: np.ndarray, band: float) -> tuple[float, float]
     return float(tc[-1]), 2 * np.pi * n_cycles / float(tc[2 * n_cycles] - tc[0])
 
 
+@plausibility_checked
+@needs_uniform_sampling("the envelope (Hilbert transform)")
+@with_one_blas_thread
 def estimate_envelope_damping(
     record: Record,
     *,

@@ -17,6 +17,7 @@ dissipative drive.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,6 +25,7 @@ import numpy as np
 from scipy import signal as sps
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify._expressions import evaluate_expression, parse_expression
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.signal.differentiate import differentiate
@@ -79,10 +81,11 @@ class IdimValidation:
         }
 
 
-def _names(model: str, translational: bool) -> tuple[tuple[str, ...], tuple[str, ...]]:
+def _names(model: str, translational: bool, force: str | None = None
+           ) -> tuple[tuple[str, ...], tuple[str, ...]]:
     inertia = "M" if translational else "J"
     lin = "m" if translational else "rad"
-    force = "N" if translational else "N·m"
+    force = force or ("N" if translational else "N·m")
     m_unit = "kg" if translational else "kg·m²"
     if model == "symmetric":
         names = (inertia, "Fv", "Fc", "offset")
@@ -111,6 +114,10 @@ def idim_regressor(
     cutoff_hz: float = 100.0,
     decimate: int = 10,
     edge: int = 50,
+    offset: float | None = None,
+    load: str | np.ndarray | None = None,
+    regressors: Sequence[str] = (),
+    min_speed: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Build the decimated observation matrix and force of the IDIM model.
 
@@ -126,7 +133,24 @@ def idim_regressor(
         Decimation factor of observation matrix and force [-]; 1 disables it. Uses
         :func:`scipy.signal.decimate` (order-8 Chebyshev I, zero phase) like MATLAB.
     edge : int
-        Samples dropped at both ends after differentiation [-].
+        Samples dropped at both ends after differentiation [-]; at least
+        ``3·fs/cutoff_hz`` are dropped (the filter's start-up transient).
+    offset : float or None
+        Known force offset [N or N·m], subtracted from the force (its column is then
+        dropped); ``None`` estimates it (symmetric model).
+    load : str or array_like, shape (n,), optional
+        Known load force [N or N·m] subtracted from ``u``: an array, or an expression of
+        ``t x v a u`` (see :mod:`driveid.identify._expressions`), e.g. ``"1.47*sin(x)"``.
+    regressors : sequence of str
+        Extra columns with unknown coefficients, expressions of ``t x v a u`` (filtered
+        position, velocity, acceleration), e.g. ``("sin(x)",)`` for gravity ``m g l sin q``.
+    min_speed : float or None
+        Decimated rows slower than this are dropped [m/s or rad/s]; ``None`` or 0 keeps
+        them. Rows at standstill are always dropped: there the force is held by static
+        friction, which the model does not describe, and the sign of a velocity that is
+        zero up to filter ripple is arbitrary. Standstill: the raw position moves by at
+        most two encoder counts (its smallest step) within ``fs/cutoff_hz`` samples,
+        widened by twice that on each side (the zero-phase filter smears the stop).
 
     Returns
     -------
@@ -139,13 +163,13 @@ def idim_regressor(
     RecordError
         If the record has no force column or is too short after dropping the edges.
     ParameterError
-        If a setting is invalid.
+        If a setting or expression is invalid.
     """
     _check_settings(model, cutoff_hz, decimate, edge)
     if record.u is None:
         raise RecordError(
             "IDIM needs the applied force or torque u; read the record with a force column "
-            "(CLI: --force-column NAME); got a record with columns "
+            "(CLI: --force NAME); got a record with columns "
             f"{list(record.columns)}"
         )
     fs = record.fs
@@ -153,22 +177,34 @@ def idim_regressor(
         raise ParameterError(
             f"cutoff_hz must be below fs/2 = {fs / 2:g} Hz; got {cutoff_hz}"
         )
-    _, v, a = differentiate(record.x, fs, cutoff_hz=cutoff_hz)
-    sl = slice(edge, record.n - edge)
-    v, a, y, t = v[sl], a[sl], np.asarray(record.u, float)[sl], record.t[sl]
+    xf, v, a = differentiate(record.x, fs, cutoff_hz=cutoff_hz)
+    u = np.asarray(record.u, float)
+    values = {"t": record.t, "x": xf, "v": v, "a": a, "u": u}
+    y = u.copy()
+    if load is not None:
+        y = y - (evaluate_expression(load, values) if isinstance(load, str)
+                 else _per_sample(load, record.n, "load"))
+    if offset is not None:
+        y = y - float(offset)
+    extra = [evaluate_expression(r, values) for r in regressors]
+    # the zero-phase filter's start-up transient lasts a few 1/cutoff_hz
+    cut = max(int(edge), math.ceil(3.0 * fs / cutoff_hz))
+    sl = slice(cut, record.n - cut)
+    v, a, y, t = v[sl], a[sl], y[sl], record.t[sl]
+    extra = [c[sl] for c in extra]
     min_len = 27 * int(decimate) if decimate > 1 else 8  # decimate's filtfilt padding
     if v.size < min_len:
         raise RecordError(
-            f"record too short for IDIM after dropping {edge} edge samples and decimating "
+            f"record too short for IDIM after dropping {cut} edge samples and decimating "
             f"by {decimate}; need >= {min_len} samples; got {v.size}"
         )
     if model == "symmetric":
-        cols = [a, v, np.sign(v), np.ones_like(v)]
+        cols = [a, v, np.sign(v)] + ([np.ones_like(v)] if offset is None else [])
     else:
         pos, neg = v > 0, v < 0
         cols = [a, np.where(pos, v, 0.0), pos.astype(float), np.where(neg, v, 0.0),
                 -neg.astype(float)]
-    W = np.column_stack(cols)
+    W = np.column_stack(cols + extra)
     if decimate > 1:
         W = sps.decimate(W, int(decimate), axis=0)
         y = sps.decimate(y, int(decimate))
@@ -176,60 +212,145 @@ def idim_regressor(
         t = t[:: int(decimate)]
     else:
         v_dec = v
-    return W, y, t, v_dec
+    min_speed = 0.0 if min_speed is None else float(min_speed)
+    if not (math.isfinite(min_speed) and min_speed >= 0):
+        raise ParameterError(f"min_speed must be >= 0 [m/s or rad/s]; got {min_speed}")
+    still = _standstill(np.asarray(record.x, float), max(1, round(fs / cutoff_hz)))[sl]
+    if decimate > 1:
+        still = still[:: int(decimate)]
+    moving = ~still & (np.abs(v_dec) > min_speed)
+    return W[moving], y[moving], t[moving], v_dec[moving]
+
+
+def _standstill(x: np.ndarray, window: int) -> np.ndarray:
+    steps = np.abs(np.diff(x))
+    steps = steps[steps > 0]
+    if steps.size == 0:
+        return np.ones(x.size, bool)
+    quantum = float(steps.min())
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    size = 2 * int(window) + 1
+    ptp = maximum_filter1d(x, size, mode="nearest") - minimum_filter1d(x, size, mode="nearest")
+    still = ptp <= 2.0 * quantum * (1 + 1e-9)
+    # the zero-phase filter smears the stop over a few windows: its rows are unreliable too
+    return maximum_filter1d(still.astype(np.int8), 4 * int(window) + 1) > 0
+
+
+def _per_sample(value: Any, n: int, name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=float).ravel()
+    if arr.size == 1:
+        return np.full(n, float(arr[0]))
+    if arr.size != n or not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must hold one finite value per sample ({n}) [N or "
+                             f"N·m]; got {arr.size} values")
+    return arr
+
+
+def _as_records(records: Record | Sequence[Record]) -> list[Record]:
+    recs = [records] if isinstance(records, Record) else list(records)
+    if not recs or not all(isinstance(r, Record) for r in recs):
+        raise ParameterError("records must be a Record or a non-empty sequence of Records; "
+                             f"got {type(records).__name__}")
+    return recs
+
+
+def _stack(recs: list[Record], loads: list[Any], settings: dict[str, Any]
+           ) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]], int]:
+    blocks = [idim_regressor(r, load=ld, **settings) for r, ld in zip(recs, loads, strict=True)]
+    return blocks, blocks[0][0].shape[1]
 
 
 def estimate_idim(
-    record: Record,
+    records: Record | Sequence[Record],
     *,
     model: str = "symmetric",
     cutoff_hz: float = 100.0,
     decimate: int = 10,
     edge: int = 50,
+    offset: float | None = None,
+    load: str | np.ndarray | Sequence[np.ndarray] | None = None,
+    regressors: Sequence[str] = (),
+    weights: str | Sequence[float] | None = None,
+    min_speed: float | None = None,
+    sensitivity: bool = True,
 ) -> Estimate:
     """Estimate inertia, viscous and Coulomb friction (and offset) by IDIM-LS.
 
     Parameters
     ----------
-    record : Record
-        Position ``x`` [m or rad] and applied force ``u`` [N or N·m] of a closed-loop run
-        that moves in both directions (EMPS: ``DATA_EMPS.mat``, force = gtau·vir).
+    records : Record or sequence of Record
+        Position ``x`` [m or rad] and applied force ``u`` [N or N·m]; several records (a
+        campaign of runs) are each filtered and differentiated on their own and their rows
+        stacked into one least-squares problem (EMPS: ``DATA_EMPS.mat``, force =
+        gtau·vir).
     model : {"symmetric", "asymmetric"}
         ``"symmetric"``: parameters M (or J), Fv, Fc, offset. ``"asymmetric"``: M,
-        Fv_plus, Fc_plus, Fv_minus, Fc_minus and no offset (EMPS §4.2).
+        Fv_plus, Fc_plus, Fv_minus, Fc_minus and no offset (EMPS §4.2); a direction the
+        runs never move in is reported as ``nan`` with a warning.
     cutoff_hz : float
         Zero-phase 4th-order Butterworth cut-off on the position [Hz] (EMPS: 5 × the
         20 Hz position-loop bandwidth = 100 Hz).
     decimate : int
         Decimation factor of observation matrix and force [-] (EMPS: 10).
     edge : int
-        Samples dropped at each end after differentiation [-] (EMPS: 50).
+        Samples dropped at each end of every record after differentiation [-] (EMPS: 50).
+    offset : float or None
+        Known force offset [N or N·m] (``0.0`` for a drive without one): makes runs in one
+        direction identifiable; reported as a fixed parameter. ``None`` estimates it
+        (symmetric model only; needs both directions).
+    load : str, array_like or sequence of array_like, optional
+        Known load [N or N·m] subtracted from the force: an expression of ``t x v a u``
+        (e.g. gravity ``"1.47*sin(x)"``), one array for a single record, or one array per
+        record.
+    regressors : sequence of str
+        Extra regressors with unknown coefficients, expressions of ``t x v a u``; the
+        coefficient of ``"sin(x)"`` is reported as ``k[sin(x)]`` [force unit].
+    weights : None, "auto" or sequence of float
+        Row weight per record [-]: ``None`` equal; a sequence, one relative weight per
+        record (inverse force-noise variance); ``"auto"`` two passes, weighting each record
+        by the inverse of its own residual variance.
+    min_speed : float or None
+        Rows slower than this are also dropped [m/s or rad/s]; standstill rows (static
+        friction holds the force) always are, see :func:`idim_regressor`.
+    sensitivity : bool
+        Also estimate at ``cutoff_hz/√2`` and ``cutoff_hz·√2`` (below 0.45 fs) and warn
+        when the inertia moves by more than its standard error (and more than 1 %).
 
     Returns
     -------
     Estimate
         ``M`` [kg] (``J`` [kg·m²] when x is not in m), ``Fv`` [N·s/m], ``Fc`` [N],
-        ``offset`` [N] (or the asymmetric set), each with the standard error
-        ``sqrt(σ²·diag((WᵀW)⁻¹))``, ``σ² = ||e||²/(m − p)``. Diagnostics: ``cond``,
+        ``offset`` [N] (fixed when given) or the asymmetric set, and ``k[<expr>]``, each
+        with the standard error ``sqrt(σ²·diag((WᵀΛW)⁻¹))``, ``σ² = eᵀΛe/(m − p)``.
+        ``covariance`` of the estimated parameters. Diagnostics: ``cond``,
         ``relative_error_pct`` (``100·||e||/||y||``), ``error_norm``, ``error_std``,
-        ``n``, and the settings. ``data_used`` holds decimated ``t``, ``force``,
-        ``predicted`` and ``velocity``.
+        ``n``, ``n_records``, ``residual_lag1`` (lag-1 autocorrelation of the residual:
+        the standard errors assume it is near 0), ``inertia_share_pct`` (the part of the
+        force that ``M·a`` explains), ``cutoff_sensitivity`` (inertia at the three
+        cut-offs), ``unphysical`` (names with a sign impossible for a passive drive) and
+        the settings. ``data_used`` holds decimated ``t``, ``force``, ``predicted``,
+        ``velocity`` and ``record_index``.
 
     Raises
     ------
     RecordError
-        If the record lacks force or is too short.
+        If a record lacks force or is too short.
     IdentificationError
-        If the drive never moves, moves in one direction only (asymmetric model), or
+        If the drive never moves, moves in one direction only with an unknown offset, or
         the observation matrix is rank-deficient.
     ParameterError
-        If a setting is invalid.
+        If a setting or expression is invalid.
 
     Notes
     -----
     Ordinary least squares is unbiased only if the force noise is uncorrelated with the
     regressors; in closed loop it is not, but the benchmark shows the bias is small when
-    the filter cut-off is well above the loop bandwidth (Janot et al. 2019, §3.3).
+    the filter cut-off is well above the loop bandwidth (Janot et al. 2019, §3.3). Noise
+    in the position enters the acceleration column amplified by ``(2π f_c)²`` and biases
+    the inertia towards 0 (errors in variables); the cut-off check exposes it. The
+    inertia is identifiable only where the acceleration carries a visible part of the
+    force: steps, reversals and sine sweeps do, constant speeds do not.
 
     Examples
     --------
@@ -241,47 +362,226 @@ def estimate_idim(
     >>> noise = 0.3 * np.random.default_rng(0).standard_normal(t.size)
     >>> u = 2.0 * a + 3.0 * v + 1.5 * np.sign(v) + 0.2 + noise
     >>> rec = Record(t=t, x=x, u=u, meta={"units": {"x": "m", "u": "N"}})
-    >>> est = estimate_idim(rec, decimate=1, cutoff_hz=50.0)
+    >>> est = estimate_idim(rec, decimate=1, cutoff_hz=50.0, sensitivity=False)
     >>> abs(est.value("M") - 2.0) < 0.05, abs(est.value("Fv") - 3.0) < 0.2
     (True, True)
     """
-    W, y, t, v = idim_regressor(record, model=model, cutoff_hz=cutoff_hz,
-                                decimate=decimate, edge=edge)
-    _check_motion(v, model)
-    translational = record.units.get("x", "rad") == "m"
-    names, units = _names(model, translational)
-    theta, stderr, cond, e = _ols(W, y)
-    params = {n: Parameter(float(th), float(se), u)
-              for n, th, se, u in zip(names, theta, stderr, units, strict=True)}
-    err_norm = float(np.linalg.norm(e))
-    diagnostics = {
+    recs = _as_records(records)
+    if offset is not None and not math.isfinite(float(offset)):
+        raise ParameterError(f"offset must be a finite force [N or N·m] or None; got {offset}")
+    loads = _loads(load, recs)
+    regressors = tuple(regressors)
+    for r in regressors:
+        parse_expression(r)
+    settings = {"model": model, "cutoff_hz": float(cutoff_hz), "decimate": decimate,
+                "edge": edge, "offset": offset, "regressors": regressors,
+                "min_speed": min_speed}
+    blocks, p = _stack(recs, loads, settings)
+    v_all = np.concatenate([b[3] for b in blocks])
+    _check_motion(v_all, model, offset)
+    w = _weights(weights, len(recs))
+    support = _support(v_all, model, p)
+    theta, cov, e, W, y, keep = _solve(blocks, w, support)
+    if weights == "auto":
+        var = np.array([max(float(np.mean(e[i] ** 2)), 1e-300) for i in range(len(blocks))])
+        w = 1.0 / var
+        theta, cov, e, W, y, keep = _solve(blocks, w, support)
+    first = recs[0]
+    translational = first.units.get("x", "rad") == "m"
+    force_unit = first.units.get("u", "N" if translational else "N·m")
+    names, units = _names(model, translational, force_unit)
+    if offset is not None and model == "symmetric":
+        names, units = names[:-1], units[:-1]
+    names = names + tuple(f"k[{r}]" for r in regressors)
+    units = units + tuple(f"{force_unit}/({r})" for r in regressors)
+    stderr = np.sqrt(np.diag(cov))
+    params: dict[str, Parameter] = {}
+    est_names: list[str] = []
+    for j, (nm, un) in enumerate(zip(names, units, strict=True)):
+        if keep[j]:
+            params[nm] = Parameter(float(theta[j]), float(stderr[j]), un)
+            est_names.append(nm)
+        else:
+            params[nm] = Parameter(math.nan, math.nan, un)
+    if offset is not None:
+        params["offset"] = Parameter(float(offset), math.nan, force_unit, fixed=True)
+    y_all = np.concatenate(y)
+    e_all = np.concatenate(e)
+    pred = y_all - e_all
+    err_norm = float(np.linalg.norm(e_all))
+    lag1 = _lag1(e)
+    inertia = names[0]
+    a_part = np.concatenate([b[0][:, 0] for b in blocks]) * params[inertia].value
+    diagnostics: dict[str, Any] = {
         "model": model,
-        "cond": cond,
-        "relative_error_pct": 100.0 * err_norm / float(np.linalg.norm(y)),
+        "cond": float(np.linalg.cond(W[:, keep])),
+        "relative_error_pct": 100.0 * err_norm / float(np.linalg.norm(y_all)),
         "error_norm": err_norm,
-        "error_std": float(np.sqrt(err_norm**2 / (y.size - W.shape[1]))),
-        "n": int(y.size),
+        "error_std": float(np.sqrt(err_norm**2 / max(y_all.size - int(keep.sum()), 1))),
+        "n": int(y_all.size),
+        "n_records": len(recs),
+        "residual_lag1": lag1,
+        "inertia_share_pct": 100.0 * float(np.linalg.norm(a_part) / np.linalg.norm(y_all)),
         "cutoff_hz": float(cutoff_hz),
         "decimate": int(decimate),
         "edge": int(edge),
-        "source": str(record.meta.get("source", "")),
-        "force_unit": record.units.get("u", "N" if translational else "N·m"),
+        "min_speed": min_speed,
+        "offset_fixed": None if offset is None else float(offset),
+        "regressors": list(regressors),
+        "load": load if isinstance(load, str) else (None if load is None else "array"),
+        "weights": [float(x) for x in w],
+        "source": str(first.meta.get("source", "")),
+        "force_unit": force_unit,
     }
-    warnings = []
-    if cond > 1e3:
-        warnings.append(f"observation matrix is ill-conditioned (cond = {cond:.3g}); the "
-                        "excitation does not separate the parameters well")
-    rel_se = [abs(se / th) for th, se in zip(theta, stderr, strict=True) if th != 0]
-    if any(r > 0.3 for r in rel_se):
-        warnings.append("some relative standard errors exceed 30 %; excite the drive "
-                        "over a wider range of velocity and acceleration")
-    return Estimate(
+    warnings = _warnings(params, names, keep, diagnostics, model)
+    if sensitivity:
+        warnings += _cutoff_check(recs, loads, settings, w, params[inertia], inertia,
+                                  diagnostics)
+    est = Estimate(
         method=f"idim-ls-{model}",
         params=params,
-        data_used={"t": t, "force": y, "predicted": W @ theta, "velocity": v},
+        data_used={"t": np.concatenate([b[2] for b in blocks]), "force": y_all,
+                   "predicted": pred, "velocity": v_all,
+                   "record_index": np.concatenate([np.full(b[1].size, i)
+                                                   for i, b in enumerate(blocks)])},
         diagnostics=diagnostics,
         warnings=tuple(warnings),
+        covariance={"names": est_names, "matrix": cov[np.ix_(keep, keep)]},
     )
+    return _plausibility(est)
+
+
+def _plausibility(est: Estimate) -> Estimate:
+    try:
+        from driveid.identify._plausibility import check_plausibility
+    except ImportError:
+        return est
+    out = check_plausibility(est)
+    return out if isinstance(out, Estimate) else est
+
+
+def _loads(load: Any, recs: list[Record]) -> list[Any]:
+    if load is None or isinstance(load, str):
+        return [load] * len(recs)
+    if len(recs) == 1 and np.ndim(load) == 1:
+        return [np.asarray(load, float)]
+    loads = list(load)
+    if len(loads) != len(recs):
+        raise ParameterError(f"load needs one array per record ({len(recs)}) [N or N·m]; "
+                             f"got {len(loads)}")
+    return loads
+
+
+def _weights(weights: Any, n: int) -> np.ndarray:
+    if weights is None or weights == "auto":
+        return np.ones(n)
+    w = np.asarray(weights, dtype=float).ravel()
+    if w.size != n or not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise ParameterError(f"weights must be 'auto' or one positive number per record "
+                             f"({n}) [-]; got {list(np.atleast_1d(weights))}")
+    return w
+
+
+def _support(v: np.ndarray, model: str, p: int) -> np.ndarray:
+    support = np.ones(p, bool)
+    if model == "asymmetric":
+        moving = np.abs(v) > 0.01 * float(np.max(np.abs(v)))
+        support[1:3] = np.count_nonzero(moving & (v > 0)) >= 5
+        support[3:5] = np.count_nonzero(moving & (v < 0)) >= 5
+    return support
+
+
+def _solve(blocks: list[Any], w: np.ndarray, support: np.ndarray) -> tuple[Any, ...]:
+    W = np.vstack([b[0] for b in blocks])
+    y = np.concatenate([b[1] for b in blocks])
+    root = np.concatenate([np.full(b[1].size, math.sqrt(wi)) for b, wi in zip(blocks, w,
+                                                                             strict=True)])
+    # a column with no support (a direction never travelled) carries no information
+    keep = support & (np.max(np.abs(W), axis=0) > 0)
+    theta_k, cov_k, _ = _ols(W[:, keep] * root[:, None], y * root)
+    theta = np.zeros(W.shape[1])
+    theta[keep] = theta_k
+    cov = np.full((W.shape[1], W.shape[1]), math.nan)
+    cov[np.ix_(keep, keep)] = cov_k
+    e_all = y - W @ theta
+    splits = np.cumsum([b[1].size for b in blocks])[:-1]
+    return theta, cov, np.split(e_all, splits), W, np.split(y, splits), keep
+
+
+def _lag1(residuals: list[np.ndarray]) -> float:
+    num = sum(float(r[1:] @ r[:-1]) for r in residuals if r.size > 1)
+    den = sum(float(r @ r) for r in residuals)
+    return num / den if den > 0 else 0.0
+
+
+def _warnings(params: dict[str, Parameter], names: tuple[str, ...], keep: np.ndarray,
+              diag: dict[str, Any], model: str) -> list[str]:
+    out = []
+    missing = [nm for nm, k in zip(names, keep, strict=True) if not k]
+    if missing:
+        out.append(f"{', '.join(missing)} not identifiable: the runs never excite them "
+                   "(no motion in that direction); add runs in the other direction")
+    if diag["cond"] > 1e3:
+        out.append(f"observation matrix is ill-conditioned (cond = {diag['cond']:.3g}); the "
+                   "excitation does not separate the parameters well")
+    inertia = names[0]
+    pj = params[inertia]
+    if math.isfinite(pj.stderr) and (pj.value == 0 or pj.stderr > 0.1 * abs(pj.value)):
+        out.append(
+            f"inertia {inertia} is poorly identified ({pj.value:.4g} ± {pj.stderr:.2g}; "
+            f"M·a explains {diag['inertia_share_pct']:.2g} % of the force): the runs lack "
+            "acceleration; add steps, reversals or a sine sweep")
+    unphysical = []
+    for nm in names:
+        p = params[nm]
+        physical_positive = nm == inertia or nm.startswith(("Fv", "Fc"))
+        if physical_positive and math.isfinite(p.value) and p.value < 0:
+            unphysical.append(nm)
+            sig = "significantly " if p.value < -2 * p.stderr else ""
+            out.append(
+                f"{nm} = {p.value:.4g} ± {p.stderr:.2g} is {sig}negative, which a passive "
+                "drive cannot have: the model misses an effect of the data (backlash, "
+                "compliance, stiction, a load or an offset), or the excitation is too weak")
+    diag["unphysical"] = unphysical
+    rel_se = [abs(p.stderr / p.value) for nm, p in params.items()
+              if not p.fixed and math.isfinite(p.value) and p.value != 0]
+    if any(r > 0.3 for r in rel_se):
+        out.append("some relative standard errors exceed 30 %; excite the drive "
+                   "over a wider range of velocity and acceleration")
+    if diag["residual_lag1"] > 0.5:
+        rho = diag["residual_lag1"]
+        out.append(
+            f"residuals are correlated (lag-1 autocorrelation {rho:.2f}), so the standard "
+            f"errors are too small by about a factor {math.sqrt((1 + rho) / (1 - rho)):.2g}"
+            "; the model misses some dynamics or the decimation is too small")
+    return out
+
+
+def _cutoff_check(recs: list[Record], loads: list[Any], settings: dict[str, Any],
+                  w: np.ndarray, pj: Parameter, inertia: str, diag: dict[str, Any]
+                  ) -> list[str]:
+    fc = settings["cutoff_hz"]
+    fs_min = min(r.fs for r in recs)
+    values = {fc: pj.value}
+    for f in (fc / math.sqrt(2.0), fc * math.sqrt(2.0)):
+        if f >= 0.45 * fs_min:
+            continue
+        try:
+            blocks, _ = _stack(recs, loads, {**settings, "cutoff_hz": f})
+            theta, *_ = _solve(blocks, w, _support(np.concatenate([b[3] for b in blocks]),
+                                                   settings["model"], blocks[0][0].shape[1]))
+        except (IdentificationError, RecordError, ParameterError):
+            continue
+        values[f] = float(theta[0])
+    diag["cutoff_sensitivity"] = {f"{k:.4g}": v for k, v in sorted(values.items())}
+    worst = max(abs(v - pj.value) for v in values.values())
+    # a floor of 1 %: smaller moves are below any use of an inertia value
+    if math.isfinite(pj.stderr) and worst > max(pj.stderr, 0.01 * abs(pj.value)):
+        span = ", ".join(f"{v:.4g} at {k:.3g} Hz" for k, v in sorted(values.items()))
+        return [f"inertia {inertia} depends on the filter cut-off by more than its standard "
+                f"error {pj.stderr:.2g} ({span}); choose the cut-off where it is flat, or "
+                "excite more acceleration"]
+    return []
 
 
 def validate_idim(estimate: Estimate, record: Record) -> IdimValidation:
@@ -312,9 +612,17 @@ def validate_idim(estimate: Estimate, record: Record) -> IdimValidation:
             f"{estimate.method!r}"
         )
     model = str(diag["model"])
+    load = diag.get("load")
+    if load == "array":
+        raise IdentificationError("validate_idim cannot reuse a load given as an array; "
+                                  "estimate with a load expression instead; got load=array")
     W, y, t, _ = idim_regressor(record, model=model, cutoff_hz=float(diag["cutoff_hz"]),
-                                decimate=int(diag["decimate"]), edge=int(diag["edge"]))
-    theta = np.array([p.value for p in estimate.params.values()])
+                                decimate=int(diag["decimate"]), edge=int(diag["edge"]),
+                                offset=diag.get("offset_fixed"), load=load,
+                                regressors=tuple(diag.get("regressors", ())),
+                                min_speed=diag.get("min_speed"))
+    theta = np.array([p.value for p in estimate.params.values() if not p.fixed])
+    theta = np.where(np.isfinite(theta), theta, 0.0)
     pred = W @ theta
     err = float(np.linalg.norm(y - pred))
     return IdimValidation(
@@ -413,17 +721,23 @@ def simulate_idim_model(
         if not (math.isfinite(val) and val > 0):
             raise ParameterError(f"{name} must be > 0; got {val}")
     model = str(estimate.diagnostics.get("model", ""))
-    theta = [p.value for p in estimate.params.values()]
+    if estimate.diagnostics.get("regressors") or estimate.diagnostics.get("load"):
+        raise IdentificationError("simulate_idim_model simulates friction and inertia only; "
+                                  "got an estimate with a load or extra regressors")
+    par = {k: (p.value if math.isfinite(p.value) else 0.0) for k, p in estimate.params.items()}
+    mass = par.get("M", par.get("J", math.nan))
     if model == "symmetric":
-        mass, fv, fc, off = theta
+        fv, fc, off = par["Fv"], par["Fc"], par["offset"]
 
         def friction(v: float) -> float:
             return fv * v + fc * (v > 0) - fc * (v < 0) + off
     elif model == "asymmetric":
-        mass, fvp, fcp, fvm, fcm = theta
+        fvp, fcp, fvm, fcm = par["Fv_plus"], par["Fc_plus"], par["Fv_minus"], par["Fc_minus"]
+        off = par.get("offset", 0.0)
 
         def friction(v: float) -> float:
-            return fvp * v + fcp if v > 0 else (fvm * v - fcm if v < 0 else 0.0)
+            base = fvp * v + fcp if v > 0 else (fvm * v - fcm if v < 0 else 0.0)
+            return base + off
     else:
         raise IdentificationError(
             f"simulate_idim_model needs an estimate made by estimate_idim; got {estimate.method!r}"
@@ -458,7 +772,7 @@ def simulate_idim_model(
                           force_error_pct=f_err)
 
 
-def _check_motion(v: np.ndarray, model: str) -> None:
+def _check_motion(v: np.ndarray, model: str, offset: float | None = None) -> None:
     scale = float(np.max(np.abs(v))) if v.size else 0.0
     if scale == 0.0:
         raise IdentificationError(
@@ -468,16 +782,16 @@ def _check_motion(v: np.ndarray, model: str) -> None:
     moving = np.abs(v) > 0.01 * scale
     n_pos = int(np.count_nonzero(moving & (v > 0)))
     n_neg = int(np.count_nonzero(moving & (v < 0)))
-    if min(n_pos, n_neg) < 5:
-        hint = ("the asymmetric model needs motion in both directions" if model == "asymmetric"
-                else "Coulomb friction and offset cannot be separated without both directions")
+    if max(n_pos, n_neg) < 5 or (model == "symmetric" and offset is None
+                                 and min(n_pos, n_neg) < 5):
         raise IdentificationError(
-            f"{hint}; add a run in the other direction; got {n_pos} positive and {n_neg} "
-            "negative-velocity samples"
+            "Coulomb friction and offset cannot be separated without both directions; add "
+            "a run in the other direction, or fix the offset (offset=0.0, CLI --offset 0); "
+            f"got {n_pos} positive and {n_neg} negative-velocity samples"
         )
 
 
-def _ols(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+def _ols(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     m, p = W.shape
     if m <= p:
         raise IdentificationError(f"need more samples than parameters ({p}); got {m}")
@@ -485,10 +799,10 @@ def _ols(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, n
     if rank < p:
         raise IdentificationError(
             f"observation matrix is rank-deficient (rank {rank} < {p}); excite both "
-            "acceleration and velocity in both directions; got rank "
+            "acceleration and velocity (and every extra regressor independently); got rank "
             f"{rank}"
         )
     e = y - W @ theta
     sigma2 = float(e @ e) / (m - p)
     cov = sigma2 * np.linalg.inv(W.T @ W)
-    return theta, np.sqrt(np.diag(cov)), float(sv[0] / sv[-1]), e
+    return theta, cov, float(sv[0] / sv[-1])

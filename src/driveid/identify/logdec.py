@@ -24,9 +24,11 @@ zeros it turns half a damped period, so for the peak ``x_n`` reached by motion i
 
 This is (2.168) with the direction taken from the data.
 
-Errata of §2.2.5 (each derived from the recursion above and checked numerically in
-``tests/identify/test_logdec.py`` against the exact simulator)
-----------------------------------------------------------------------------------------
+Errata of §2.2.5
+----------------
+Each is derived from the recursion above and checked numerically in
+``tests/identify/test_logdec.py`` against the exact simulator.
+
 * (2.166) prints ``πβ = -πζ/sqrt(1-ζ²) = -πσ/ω_d``; the definition before it makes
   ``πβ = -ln(-γ_n/γ_{n-1}) = +πζ/sqrt(1-ζ²)`` (the peak ratio is below one).
 * (2.171) ``ζ = sqrt(β²/(π²+β²))`` is right only for the half-cycle decrement ``πβ``; with the
@@ -65,8 +67,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from driveid.errors import IdentificationError, ParameterError
+from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
+from driveid.signal._blas import with_one_blas_thread
 from driveid.signal.peaks import Peaks, find_oscillation_peaks
 
 __all__ = [
@@ -124,13 +128,35 @@ def peak_recursion(
     ...                theta_k_mean=0.1, theta_k_delta=0.0)
     array([ 1. , -0.8,  0.6])
     """
-    out = np.empty(len(directions))
+    n = len(directions)
+    out = np.empty(n)
     out[0] = x_first
-    rho = {1: _ratio(zeta_plus), -1: _ratio(zeta_minus)}
-    for n in range(1, len(directions)):
-        s = int(directions[n])
-        eq = -(theta_k_mean * s + theta_k_delta)
-        out[n] = eq - rho[s] * (out[n - 1] - eq)
+    if n == 1:
+        return out
+    s = np.where(np.asarray(directions[1:]) > 0, 1.0, -1.0)
+    rho = np.where(s > 0, _ratio(zeta_plus), _ratio(zeta_minus))
+    eq = -(theta_k_mean * s + theta_k_delta)
+    # x_n = a_n + b_n x_{n-1}, solved in closed form per chunk with cumulative products:
+    # x_j = P_j (x_start + sum_k a_k / P_k); chunks keep |P| >= ~1e-300 (no underflow), so a
+    # long record costs a few numpy calls instead of a Python loop per peak (issue 18)
+    a, b = eq * (1.0 + rho), -rho
+    smallest = float(np.min(np.abs(b)))
+    chunk = 1 if smallest <= 0.0 else int(max(1, min(256, 280 // max(1.0, -np.log10(smallest)))))
+    start = 0
+    previous = x_first
+    while start < n - 1:
+        stop = min(n - 1, start + chunk)
+        product = np.cumprod(b[start:stop])
+        if product[-1] == 0.0:  # zero damping ratio limit: one step at a time
+            values = np.empty(stop - start)
+            for j in range(start, stop):
+                previous = a[j] + b[j] * previous
+                values[j - start] = previous
+        else:
+            values = product * (previous + np.cumsum(a[start:stop] / product))
+            previous = values[-1]
+        out[1 + start:1 + stop] = values
+        start = stop
     return out
 
 
@@ -141,7 +167,8 @@ def _peaks_of(records, peaks):
     if not records:
         raise IdentificationError("no record given; pass one record or a list of records")
     if peaks is None:
-        peaks = [find_oscillation_peaks(r) for r in records]
+        peaks = [find_oscillation_peaks(r.resampled_uniform(purpose="peak refinement"))
+                 for r in records]
     elif isinstance(peaks, Peaks):
         peaks = [peaks]
     if len(peaks) != len(records):
@@ -182,6 +209,8 @@ def _physical(omega0, zp, zm, tkm, tkd, mass, stiffness):
     }
 
 
+@plausibility_checked
+@with_one_blas_thread
 def estimate_log_decrement_thesis(
     record: Record,
     *,
@@ -250,7 +279,8 @@ def estimate_log_decrement_thesis(
                              values["theta_k_mean"], values["theta_k_delta"], mass, stiffness)
         for name, unit in (("J", u["J"]), ("K", u["K"]), ("c_mean", u["c"]),
                            ("c_delta", u["c"]), ("fk_mean", u["f"]), ("fk_delta", u["f"])):
-            params[name] = Parameter(phys[name], math.nan, unit)
+            params[name] = Parameter(phys[name], math.nan, unit, fixed=(
+                (name == "J" and mass is not None) or (name == "K" and stiffness is not None)))
     bad = [k for k, p in params.items() if not math.isfinite(p.value)]
     if bad:
         raise IdentificationError(
@@ -333,6 +363,8 @@ def _thesis_corrected(x, t, time_valid):
     return values, errors
 
 
+@plausibility_checked
+@with_one_blas_thread
 def estimate_log_decrement(
     records: Record | Sequence[Record],
     *,
@@ -503,7 +535,8 @@ def estimate_log_decrement(
                                       ("c_delta", u["c"]), ("fk_mean", u["f"]),
                                       ("fk_delta", u["f"]))):
             known = (nm == "J" and mass is not None) or (nm == "K" and stiffness is not None)
-            params[nm] = Parameter(float(g0[i]), 0.0 if known else float(se_phys[i]), un)
+            params[nm] = Parameter(float(g0[i]), 0.0 if known else float(se_phys[i]), un,
+                                   fixed=known)
     fitted = []
     for k, d in enumerate(dirs):
         fitted.append(peak_recursion(p[5 + 2 * k], d, zeta_plus=p[1], zeta_minus=p[2],

@@ -85,6 +85,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from driveid.errors import IdentificationError, ParameterError
+from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.logdec import MIN_PEAKS, estimate_log_decrement
 from driveid.io.record import Record
@@ -354,6 +355,7 @@ def _joint_jacobian(runs_arr, delay, K_known, scale):
     return theta, np.hstack([Aw, dw]), Aw @ theta - yw
 
 
+@plausibility_checked
 def estimate_pho_campaign(
     runs: Sequence[PHORun],
     *,
@@ -493,8 +495,8 @@ def estimate_pho_campaign(
     if K_known is None:
         params["K"] = Parameter(float(theta[2]), float(se[2]), spec["K"])
     else:
-        params["K"] = Parameter(float(K_known), 0.0, spec["K"])
-    params["delay"] = Parameter(delay_hat, delay_se, "s")
+        params["K"] = Parameter(float(K_known), 0.0, spec["K"], fixed=True)
+    params["delay"] = Parameter(delay_hat, delay_se, "s", fixed=delay is not None)
     friction, per_run = _friction(runs, params, delay_hat, spec)
     params.update(friction)
     P_arr, D_arr, sig, _, wd, _ = runs_arr.T
@@ -714,6 +716,7 @@ def _gains(record: Record, k: int) -> tuple[float, float]:
     return P, D
 
 
+@plausibility_checked
 def estimate_pho_records(
     records: Sequence[Record],
     *,

@@ -1,4 +1,9 @@
-"""Records and their files: Record, CSV/NPZ/MATLAB readers and writers, campaign manifests."""
+"""Records and their files: one reading layer, writers, campaign manifests.
+
+The reading layer (:func:`read_record`) takes every supported format, column choice, units,
+windows and scales (:mod:`driveid.io.tables`, :mod:`driveid.io.units`,
+:mod:`driveid.io.reading`).
+"""
 
 from driveid.io.files import SUFFIXES, ensure_writable, read_record, write_record
 from driveid.io.manifest import (
@@ -9,7 +14,10 @@ from driveid.io.manifest import (
     read_manifest,
     write_manifest,
 )
-from driveid.io.record import DEFAULT_UNITS, MIN_SAMPLES, Record
+from driveid.io.reading import COLUMN_ALIASES, parse_scale
+from driveid.io.record import DEFAULT_UNITS, MIN_SAMPLES, Record, record_from_table
+from driveid.io.tables import READABLE_SUFFIXES, Table, read_table
+from driveid.io.units import UNIT_CONVERSIONS, split_header, to_si
 
 __all__ = [
     "Record",
@@ -17,6 +25,15 @@ __all__ = [
     "write_record",
     "ensure_writable",
     "SUFFIXES",
+    "READABLE_SUFFIXES",
+    "Table",
+    "read_table",
+    "record_from_table",
+    "parse_scale",
+    "COLUMN_ALIASES",
+    "UNIT_CONVERSIONS",
+    "split_header",
+    "to_si",
     "DEFAULT_UNITS",
     "MIN_SAMPLES",
     "Manifest",

@@ -10,7 +10,13 @@ hardware user types::
      "runs": [{"file": "r1pos.csv", "P": 1.5, "D": 0.03},
               {"file": "r1neg.csv", "P": 1.5, "D": 0.03}]}
 
-Record files are relative to the manifest's folder (absolute paths are accepted too).
+Record files are relative to the manifest's folder and must stay inside it: an absolute
+path, a ``..`` that leaves the folder or a symbolic link pointing outside is refused unless
+the caller passes ``allow_outside=True`` (CLI ``--allow-outside``); nothing outside is read
+before that check, so no foreign file's content can reach an error message. Reading checks
+the campaign against itself (issue 12): gains or ``x0`` in the manifest that differ from the
+records' own metadata are an error, a record listed twice and an interrupted campaign
+(``"complete": false``) are warnings.
 Unknown keys are errors, not warnings: a misspelt ``"delay"`` for ``"delay_s"`` would
 otherwise silently turn a known delay into an estimated one. Free text goes under
 ``"notes"``.
@@ -20,15 +26,19 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from driveid._json import to_jsonable
-from driveid.errors import FileFormatError, OverwriteError
+from driveid.errors import FileFormatError, OverwriteError, RecordWarning
+from driveid.io.consistency import load_json, warn_duplicates
 from driveid.io.files import read_record
 from driveid.io.record import Record
+from driveid.io.safe_write import atomic_write_text
 
 __all__ = [
     "MANIFEST_NAME",
@@ -49,6 +59,8 @@ _TOP_KEYS = {"format", "version", "created", "plant", "units", "delay_s", "K", "
              "complete", "runs", "notes"}
 _RUN_KEYS = {"index", "file", "P", "D", "x0", "accepted", "reason", "settled_at", "n_peaks",
              "aborted", "notes"}
+#: Largest manifest file read [bytes] (10 000 runs need about 3 MB).
+_MAX_MANIFEST_BYTES = 64 << 20
 _UNIT_SETS = {"rad": {"x": "rad", "u": "N·m", "v": "rad/s"},
               "m": {"x": "m", "u": "N", "v": "m/s"}}
 
@@ -149,6 +161,9 @@ class Manifest:
         Free text.
     folder : Path or None
         Folder the relative record paths start from (the manifest's folder).
+    allow_outside : bool
+        Accept record files outside ``folder`` (absolute paths, ``..``, links pointing
+        out); default False. Not written to the file.
     """
 
     runs: tuple
@@ -161,6 +176,7 @@ class Manifest:
     complete: bool = True
     notes: str | None = None
     folder: Path | None = None
+    allow_outside: bool = False
 
     def path_of(self, run: ManifestRun) -> Path:
         """Return the record file of a run.
@@ -177,6 +193,47 @@ class Manifest:
         """
         p = Path(run.file)
         return p if p.is_absolute() or self.folder is None else self.folder / p
+
+    def checked_path_of(self, i: int, run: ManifestRun) -> Path:
+        """Return the record file of run ``i`` after checking it stays inside the folder.
+
+        Parameters
+        ----------
+        i : int
+            Position of the run in :attr:`runs` (for the message) [-].
+        run : ManifestRun
+            The run.
+
+        Returns
+        -------
+        Path
+            The record file.
+
+        Raises
+        ------
+        FileFormatError
+            If the file is outside :attr:`folder` (absolute, ``..`` or a symbolic link
+            pointing out) and :attr:`allow_outside` is False.
+        """
+        path = self.path_of(run)
+        if self.allow_outside or self.folder is None:
+            return path
+        folder = Path(os.path.realpath(self.folder))
+        why = None
+        if Path(run.file).is_absolute():
+            why = "is an absolute path"
+        elif ".." in Path(run.file).parts:
+            why = "contains '..'"
+        else:
+            real = Path(os.path.realpath(path))
+            if real != folder and folder not in real.parents:
+                why = "is a symbolic link (or inside one) pointing outside the campaign folder"
+        if why is not None:
+            raise FileFormatError(
+                f"runs[{i}].file {run.file!r} {why}; a campaign reads records only inside "
+                f"its own folder {self.folder}; move the file into the folder, or pass "
+                "allow_outside=True (CLI: --allow-outside) if you trust the manifest")
+        return path
 
     @property
     def accepted(self) -> tuple:
@@ -200,13 +257,28 @@ class Manifest:
         Raises
         ------
         FileFormatError
-            If a file is missing or its position unit contradicts ``units``.
+            If a file is missing or outside the folder (see :meth:`checked_path_of`), its
+            position unit contradicts ``units``, or its own metadata gives other gains or
+            ``x0`` than the manifest.
+
+        Warns
+        -----
+        RecordWarning
+            If the campaign is incomplete (``"complete": false``) or a record is listed
+            more than once.
         """
+        if not self.complete:
+            warnings.warn(
+                f"the campaign in {self.folder or 'this manifest'} is incomplete (\"complete\": "
+                f"false, {len(self.runs)} run(s) listed): it was interrupted or is still "
+                "running; finish it with `driveid pho run --resume` (same options), or "
+                "accept that the analysis uses only the runs measured", RecordWarning,
+                stacklevel=2)
         records = []
         for i, run in enumerate(self.runs):
             if accepted_only and not run.accepted:
                 continue
-            path = self.path_of(run)
+            path = self.checked_path_of(i, run)
             if not path.is_file():
                 raise FileFormatError(
                     f"run {i} ({run.file!r}): record file {path} not found; fix the \"file\" "
@@ -220,6 +292,7 @@ class Manifest:
                         f"file contradicts the manifest's units {self.units!r}; fix one of them"
                     )
                 rec = read_record(path, units=_UNIT_SETS[self.units])
+            _check_gains(i, run, rec)
             meta: dict[str, Any] = {"P": run.P, "D": run.D, "run_index": run.index or i + 1}
             if run.x0 is not None:
                 meta["x0"] = run.x0
@@ -229,6 +302,7 @@ class Manifest:
             if self.plant is not None:
                 meta.setdefault("plant", self.plant)
             records.append(rec.replace(meta=meta))
+        warn_duplicates(records)
         return records
 
     def to_dict(self) -> dict[str, Any]:
@@ -249,10 +323,30 @@ class Manifest:
         return to_jsonable(out)
 
 
+def _check_gains(i: int, run: ManifestRun, record: Record) -> None:
+    """Refuse a run whose record's own metadata gives other P, D or x0 than the manifest."""
+    for key in ("P", "D", "x0"):
+        listed = getattr(run, key)
+        own = record.meta.get(key)
+        if listed is None or own is None:
+            continue
+        try:
+            own = float(own)
+        except (TypeError, ValueError):
+            continue
+        # 1e-9: both are written from the same float with 17 digits; anything larger is
+        # an edited manifest or a mixed-up file, not rounding
+        if not math.isclose(listed, own, rel_tol=1e-9, abs_tol=1e-12):
+            raise FileFormatError(
+                f"runs[{i}] ({run.file!r}): the manifest says {key} = {listed:g} but the "
+                f"record's own metadata says {key} = {own:g}; one of them was edited or the "
+                "file belongs to another run; fix the manifest entry")
+
+
 def _csv_header_has_units(path: Path) -> bool:
     if path.suffix.lower() not in (".csv", ".txt"):
         return True  # NPZ / MAT carry units in their metadata when they have any
-    with open(path, encoding="utf-8") as fh:
+    with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             if line.strip() and not line.lstrip().startswith("#"):
                 return "[" in line or "(" in line
@@ -374,7 +468,8 @@ def manifest_from_dict(data: Any, *, folder: Path | None = None,
     )
 
 
-def read_manifest(path: str | Path, *, check_files: bool = True) -> Manifest:
+def read_manifest(path: str | Path, *, check_files: bool = True,
+                  allow_outside: bool = False) -> Manifest:
     """Read and validate a campaign manifest (full or minimal hand-written form).
 
     Parameters
@@ -382,7 +477,10 @@ def read_manifest(path: str | Path, *, check_files: bool = True) -> Manifest:
     path : str or Path
         The manifest JSON file, or a campaign folder holding ``manifest.json``.
     check_files : bool
-        Check that every run's record file exists (default).
+        Check that every run's record file exists and lies inside the folder (default).
+    allow_outside : bool
+        Accept record files outside the manifest's folder (absolute paths, ``..``,
+        symbolic links pointing out); default False.
 
     Returns
     -------
@@ -412,13 +510,17 @@ def read_manifest(path: str | Path, *, check_files: bool = True) -> Manifest:
             f"no campaign manifest at {path}; pass the campaign folder written by "
             f"`driveid pho run` or a JSON manifest file"
         )
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{path.name} is not valid JSON: {exc}") from None
+    if path.stat().st_size > _MAX_MANIFEST_BYTES:
+        raise FileFormatError(
+            f"{path.name} is {path.stat().st_size} bytes; a manifest of even 10 000 runs is "
+            f"far below the limit of {_MAX_MANIFEST_BYTES} bytes; is it the right file?")
+    data = load_json(path.read_bytes(), path.name)
     manifest = manifest_from_dict(data, folder=path.parent.resolve(), source=path.name)
+    if allow_outside:
+        manifest = _replace(manifest, allow_outside=True)
     if check_files:
         for i, run in enumerate(manifest.runs):
+            manifest.checked_path_of(i, run)
             if not manifest.path_of(run).is_file():
                 raise FileFormatError(
                     f"{path.name}: runs[{i}] names file {run.file!r}, which does not exist in "
@@ -452,15 +554,20 @@ def write_manifest(manifest: Manifest, path: str | Path, *, overwrite: bool = Fa
         If the file exists and ``overwrite`` is False.
     """
     path = Path(path)
-    if path.is_dir():
+    if path.is_dir() and not path.is_symlink():
         path = path / MANIFEST_NAME
-    if path.exists() and not overwrite:
+    if os.path.lexists(path) and not overwrite:
         raise OverwriteError(
             f"{path} exists and holds an earlier campaign; choose another folder (CLI: --out)"
         )
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(manifest.to_dict(), indent=2, ensure_ascii=False) + "\n",
-                   encoding="utf-8")
-    tmp.replace(path)  # atomic: an interrupted write never leaves half a manifest
+    # atomic, under an exclusively created temporary name: a planted manifest.json.tmp
+    # link, or a link at manifest.json itself, is never written through
+    text = json.dumps(manifest.to_dict(), indent=2, ensure_ascii=False) + "\n"
+    atomic_write_text(path, text, overwrite=overwrite, option="--out (another folder)")
     return path
+
+
+def _replace(manifest: Manifest, **changes: Any) -> Manifest:
+    from dataclasses import replace
+
+    return replace(manifest, **changes)

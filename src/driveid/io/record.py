@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any
@@ -13,7 +14,7 @@ import numpy as np
 from driveid.errors import RecordError, RecordWarning
 from driveid.signal.repair import check_timeline, find_corrupted_bursts
 
-__all__ = ["Record", "MIN_SAMPLES", "DEFAULT_UNITS"]
+__all__ = ["Record", "MIN_SAMPLES", "DEFAULT_UNITS", "needs_uniform_sampling", "record_from_table"]
 
 #: Fewest samples a record may have [-].
 MIN_SAMPLES = 8
@@ -218,6 +219,117 @@ class Record:
         fields.update(changes)
         return Record(meta=meta, **fields)
 
+    @classmethod
+    def from_dataframe(
+        cls,
+        df: Any,
+        *,
+        time: str | int | None = None,
+        position: str | int | None = None,
+        velocity: str | int | None = None,
+        force: str | int | None = None,
+        fs: float | None = None,
+        window: tuple[float | None, float | None] | None = None,
+        max_jitter: float | None = 0.01,
+        scale: Mapping[str, float | str] | None = None,
+        units: Mapping[str, str] | None = None,
+        counts_per_rev: float | None = None,
+        counts_per_metre: float | None = None,
+        source: str = "dataframe",
+    ) -> Record:
+        """Build a record from a :class:`pandas.DataFrame`, as :func:`read_record` reads files.
+
+        Parameters
+        ----------
+        df : pandas.DataFrame
+            One column per quantity; headers may carry units (``"x [mm]"``).
+        time, position, velocity, force : str or int, optional
+            Column name or 0-based index; found by name and alias when omitted.
+        fs : float, optional
+            Sample rate [Hz] when there is no time column.
+        window : tuple of (float or None, float or None), optional
+            Keep ``t0 <= t <= t1`` [s].
+        max_jitter : float or None
+            As for :class:`Record` [-].
+        scale : mapping, optional
+            Record column -> factor (number or expression such as ``"0.02/60"``).
+        units : mapping, optional
+            Record column -> unit, stating or overriding the header's.
+        counts_per_rev : float, optional
+            Encoder counts per revolution [1/rev] for positions in counts.
+        counts_per_metre : float, optional
+            Encoder counts per metre [1/m] for positions in counts.
+        source : str
+            Name kept as ``meta["source"]``.
+
+        Returns
+        -------
+        Record
+            The validated record in SI units.
+
+        Examples
+        --------
+        >>> import pandas as pd
+        >>> df = pd.DataFrame({"time [ms]": np.arange(10.0), "pos [mm]": np.arange(10.0)})
+        >>> rec = Record.from_dataframe(df)
+        >>> rec.fs, round(float(rec.x[-1]), 12), rec.units["x"]
+        (1000.0, 0.009, 'm')
+        """
+        from driveid.io.tables import table_from_dataframe
+
+        columns = {col: spec for col, spec in
+                   (("t", time), ("x", position), ("v", velocity), ("u", force))
+                   if spec is not None}
+        return record_from_table(
+            table_from_dataframe(df, source=source), source=source, columns=columns, fs=fs,
+            window=window, max_jitter=max_jitter, scale=scale, units=units,
+            counts_per_rev=counts_per_rev, counts_per_metre=counts_per_metre)
+
+    def jitter(self) -> float:
+        """Largest relative deviation of a sampling interval from the median [-]."""
+        dt = np.diff(self.t)
+        return float(np.max(np.abs(dt - self.dt)) / self.dt)
+
+    def resampled_uniform(self, *, purpose: str = "this analysis",
+                          tolerance: float = 0.01) -> Record:
+        """Return the record on a uniform timeline, resampled if its jitter exceeds tolerance.
+
+        Parameters
+        ----------
+        purpose : str
+            What needs uniform sampling, named in the warning (e.g. ``"the Hilbert
+            transform"``).
+        tolerance : float
+            Largest relative interval deviation accepted as uniform [-].
+
+        Returns
+        -------
+        Record
+            ``self`` when uniform enough; otherwise a copy linearly interpolated onto
+            ``t0 + k·dt`` with the median interval ``dt`` (``meta["resampled"]`` says so).
+
+        Warns
+        -----
+        RecordWarning
+            When resampling, naming the jitter and the new rate.
+        """
+        jitter = self.jitter()
+        if jitter <= tolerance:
+            return self
+        dt = self.dt
+        n = int(np.floor(self.duration / dt + 1e-9)) + 1
+        t = self.t[0] + dt * np.arange(n)
+        t = t[t <= self.t[-1]]
+        columns = {name: np.interp(t, self.t, getattr(self, name))
+                   for name in self.columns if name != "t"}
+        warnings.warn(
+            f"sampling is not uniform (worst interval {100 * jitter:.3g} % off the median); "
+            f"{purpose} needs uniform sampling, so the record was resampled linearly to "
+            f"{1 / dt:.6g} Hz; record at a steady rate, or check the timestamps",
+            RecordWarning, stacklevel=2)
+        return self.replace(t=t, **columns, max_jitter=tolerance,
+                            meta={"resampled": {"from_jitter": jitter, "fs": 1 / dt}})
+
     @property
     def columns(self) -> tuple[str, ...]:
         """Names of the columns present, in the order t, x, u, v."""
@@ -226,3 +338,57 @@ class Record:
     def __repr__(self) -> str:
         cols = ", ".join(self.columns)
         return f"Record(n={self.n}, fs={self.fs:g} Hz, duration={self.duration:g} s, [{cols}])"
+
+
+def needs_uniform_sampling(purpose: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Decorate an analysis whose first argument is a Record that must be uniformly sampled.
+
+    A record read with ``max_jitter=None`` (CLI ``--max-jitter none``) is resampled by
+    :meth:`Record.resampled_uniform` before the analysis sees it, with a warning naming
+    ``purpose``; a uniform record passes unchanged.
+
+    Parameters
+    ----------
+    purpose : str
+        What needs uniform sampling, e.g. ``"the Hilbert transform"``.
+
+    Returns
+    -------
+    callable
+        The decorator.
+    """
+
+    def decorate(func: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(func)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            if args and isinstance(args[0], Record):
+                args = (args[0].resampled_uniform(purpose=purpose), *args[1:])
+            elif isinstance(kwargs.get("record"), Record):
+                kwargs["record"] = kwargs["record"].resampled_uniform(purpose=purpose)
+            return func(*args, **kwargs)
+
+        return wrapper
+
+    return decorate
+
+
+def record_from_table(table: Any, **kwargs: Any) -> Record:
+    """Build a :class:`Record` from a table of file columns (the reading pipeline).
+
+    Parameters
+    ----------
+    table : driveid.io.tables.Table
+        Columns read from a file or a DataFrame.
+    **kwargs
+        ``source``, ``sha256``, ``columns``, ``fs`` [Hz], ``window`` [s], ``max_jitter``,
+        ``scale``, ``units``, ``counts_per_rev``, ``counts_per_metre``, as in
+        :func:`driveid.io.read_record`.
+
+    Returns
+    -------
+    Record
+        The validated record in SI units with provenance in ``meta``.
+    """
+    from driveid.io import reading
+
+    return reading.record_from_table(table, record_type=Record, **kwargs)

@@ -7,30 +7,9 @@ from typing import Any
 
 import numpy as np
 
+from driveid.report._pyplot import pyplot
+
 __all__ = ["plot_estimate", "plot_log_decrement", "pyplot", "save_figure"]
-
-
-def pyplot() -> Any:
-    """Return ``matplotlib.pyplot``, on the Agg backend when no display is available.
-
-    Returns
-    -------
-    module
-        ``matplotlib.pyplot``.
-    """
-    import matplotlib
-
-    if matplotlib.get_backend().lower() not in ("agg", "pdf", "svg") and not _has_display():
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _has_display() -> bool:
-    import os
-
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
@@ -51,6 +30,14 @@ def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
         The figure drawn on.
     """
     method = estimate.method
+    if method == "output-error":
+        from driveid.validate import compare
+
+        records = [record] if hasattr(record, "t") else list(record or [])
+        if not records:
+            raise ValueError("an output-error figure overlays the model on its record; pass "
+                             "record=")
+        return compare(records[0], estimate, index=0).plot()
     if method.startswith("logdec"):
         return plot_log_decrement(estimate, record=record, ax=ax)
     if method in ("hilbert-freevib", "hilbert-forcevib"):

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from driveid.report.figures import pyplot
+from driveid.report._pyplot import pyplot
 
 __all__ = ["plot_friction_map", "plot_idim"]
 
@@ -39,11 +39,12 @@ def plot_friction_map(result: Any, *, ax: Any = None) -> Any:
     else:
         fig = ax.figure
     pts = result.points
+    binned = bool(pts) and all(p.start < 0 for p in pts)
     v = np.array([p.velocity for p in pts])
     f = np.array([p.force for p in pts])
     ax.errorbar(v, f, xerr=[p.velocity_stderr for p in pts],
                 yerr=[p.force_stderr for p in pts], fmt="k.", ms=4, lw=0.8,
-                label="steady segments")
+                label="velocity bins of F − J·a" if binned else "steady segments")
     vmax = float(np.max(np.abs(v))) if v.size else 1.0
     for model, est in result.fits.items():
         func, names, eq = BRANCH_MAPS[model]
@@ -68,7 +69,8 @@ def plot_friction_map(result: Any, *, ax: Any = None) -> Any:
     ax.axvline(0.0, color="0.7", lw=0.6)
     ax.set_xlabel(f"velocity [{vel_unit}]")
     ax.set_ylabel(f"friction [{fu}]")
-    ax.set_title("steady-velocity friction map (+ and − branches)")
+    ax.set_title("friction map from binned motion (+ and − branches)" if binned
+                 else "steady-velocity friction map (+ and − branches)")
     ax.legend(fontsize=8)
     fig.tight_layout()
     return fig

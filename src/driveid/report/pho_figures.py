@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from driveid.report.figures import pyplot
+from driveid.report._pyplot import pyplot
 
 __all__ = ["plot_pho_campaign"]
 

@@ -177,9 +177,11 @@ def find_steady_segments(
     ``tol = max(rel_tol·|m_i|, noise_factor·noise)`` and the moving means half a window
     before and after differ by at most ``tol`` (no drift); ``m_i`` is the moving mean. A run
     of such samples is then cut wherever ``m_i`` leaves the mean level of the run so far by
-    more than ``tol``; a piece is kept if it is at least ``min_samples`` long and its
-    least-squares trend changes it by at most ``tol/2`` from end to end (a piece cut from a
-    ramp changes by about ``tol``).
+    more than ``tol``; each piece is kept from the first sample after which its
+    least-squares trend changes it by at most ``tol/2`` from end to end and at least
+    ``min_samples`` remain: the start of a slowly settling (e.g. first-order, τ of
+    seconds) plateau is trimmed instead of the plateau being lost, and a larger tolerance
+    trims less (a piece cut from a ramp changes by about ``tol``).
 
     Examples
     --------
@@ -218,16 +220,48 @@ def find_steady_segments(
     out = []
     for a, b in zip(edges[::2], edges[1::2], strict=True):
         for i, j in _split_level(m, tol, int(a), int(b)):
-            if j - i < min_samples:
+            piece = _settled_tail(y, m, i, j, rel_tol, noise_factor * sigma, min_samples, h)
+            if piece is not None:
+                out.append(piece)
+    return _merge_fragments(y, out, rel_tol, noise_factor * sigma, 2 * w)
+
+
+def _merge_fragments(y: np.ndarray, segs: list[tuple[int, int]], rel_tol: float,
+                     noise_tol: float, max_gap: int) -> list[tuple[int, int]]:
+    # a plateau cut by a noise burst comes back as fragments on one level: join them
+    merged: list[tuple[int, int]] = []
+    for a, b in segs:
+        if merged:
+            pa, pb = merged[-1]
+            m1, m2 = float(y[pa:pb].mean()), float(y[a:b].mean())
+            limit = 0.5 * max(rel_tol * max(abs(m1), abs(m2)), noise_tol)
+            if a - pb <= max_gap and abs(m1 - m2) <= limit:
+                merged[-1] = (pa, b)
                 continue
-            # a piece cut from a ramp changes by about tol across itself; a plateau by
-            # no more than its noise
-            n = j - i
-            k = np.arange(n) - 0.5 * (n - 1)
-            change = abs(float(k @ y[i:j]) / float(k @ k)) * (n - 1)
-            if change <= 0.5 * max(rel_tol * abs(float(m[i:j].mean())), noise_factor * sigma):
-                out.append((i, j))
-    return out
+        merged.append((a, b))
+    return merged
+
+
+def _trend_change(y: np.ndarray) -> float:
+    n = y.size
+    k = np.arange(n) - 0.5 * (n - 1)
+    return abs(float(k @ y) / float(k @ k)) * (n - 1)
+
+
+def _settled_tail(y: np.ndarray, m: np.ndarray, i: int, j: int, rel_tol: float,
+                  noise_tol: float, min_samples: int, step: int) -> tuple[int, int] | None:
+    # settling is judged by the trend of the remaining samples against the tolerance: a
+    # plateau changes across itself by no more than its noise, a piece of a ramp by about
+    # tol; drop the start in steps until the rest is settled (a larger tolerance stops
+    # earlier, so it never finds fewer segments)
+    step = max(1, int(step))
+    start = i
+    while j - start >= min_samples:
+        limit = 0.5 * max(rel_tol * abs(float(m[start:j].mean())), noise_tol)
+        if _trend_change(y[start:j]) <= limit:
+            return start, j
+        start += step
+    return None
 
 
 def _split_level(m: np.ndarray, tol: np.ndarray, a: int, b: int) -> list[tuple[int, int]]:

@@ -81,8 +81,10 @@ def _delayed(tau, delay, h, hist, x0, v0, now_x, now_v):
 def _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work):
     """Compute the applied force on every body (but its own friction) and each link force.
 
-    par rows: bodies (J, K, c_mean, c_delta, fk_mean, fk_delta, fs_lo, fs_hi), links
-    (type, k, c, gap_plus, gap_minus, allow_tension), feedback (on, body, P, D, delay, sat).
+    par rows (11 columns, zero-padded): bodies (J, K, c_mean, c_delta, fk_mean, fk_delta,
+    fs_lo, fs_hi, ripple amplitude, ripple wavenumber 2π/P, ripple phase), links (type, k, c,
+    gap_plus, gap_minus, allow_tension, restitution, rest_velocity), feedback (on, body, P,
+    D, delay, sat).
     inp rows: torque of each body, reference. work: applied forces, then link forces.
     Returns the saturated command [N·m].
     """
@@ -135,7 +137,10 @@ def _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy):
         ext = _interp(inp, i, tau, fs_in)
         if i == fb_body:
             ext += cmd
-        fric = (par[i, 2] + par[i, 3] * m) * v + par[i, 4] * m + par[i, 5]
+        level = par[i, 4]
+        if par[i, 8] != 0.0:  # friction ripple periodic in position (drive_types)
+            level += par[i, 8] * math.sin(par[i, 9] * y[i] + par[i, 10])
+        fric = (par[i, 2] + par[i, 3] * m) * v + level * m + par[i, 5]
         dy[i] = v
         dy[nb + i] = (work[i] - fric) / par[i, 0]
         p_in += ext * v
@@ -585,15 +590,15 @@ def _time_to_rest(y0, v0, sigma, w0sq):
 
 
 @njit(cache=True)
-def free_decay_batch_kernel(par, x0, v0, u0, fs, n_out, max_segments, want_v):
+def free_decay_batch_kernel(par, x0, v0, u0, fs, n_out, max_segments, want_v, x, v):
     """Exact free decays; par rows: J, K, c_mean, c_delta, fk_mean, fk_delta, fs_lo, fs_hi.
 
-    Returns (x, v, stuck_at, n_reversals, ok) with x of shape (n_sets, n_out) and v the same
-    (or (n_sets, 1) unfilled when ``want_v`` is False: half the memory traffic).
+    Fills the caller's x, shape (n_sets, n_out), and v (the same, or any shape unfilled
+    when ``want_v`` is False: half the memory traffic); returns (stuck_at, n_reversals, ok).
+    Reusing x and v across calls saves the page faults of fresh output (most of the time of
+    a large batch).
     """
     n = par.shape[0]
-    x = np.empty((n, n_out))
-    v = np.empty((n, n_out if want_v else 1))
     stuck_at = np.full(n, np.nan)
     n_rev = np.zeros(n, dtype=np.int64)
     ok = np.ones(n, dtype=np.bool_)
@@ -649,4 +654,4 @@ def free_decay_batch_kernel(par, x0, v0, u0, fs, n_out, max_segments, want_v):
             n_rev[r] += 1
         if not done:
             ok[r] = False
-    return x, v, stuck_at, n_rev, ok
+    return stuck_at, n_rev, ok

@@ -65,6 +65,7 @@ import numpy as np
 from driveid.errors import ParameterError, SimulationError
 from driveid.models.dynamic_friction import LuGreParams
 from driveid.models.motor import MotorAmplifier
+from driveid.sim import drive_types as _types
 from driveid.sim._smooth_kernels import (
     _ABORTED,
     _J,
@@ -88,8 +89,6 @@ def _check_tol(name: str, value, low: float, high: float) -> float:
 
 def _pack(params, motor):
     """Validate the smooth-path rules and build the parameter arrays of the kernel."""
-    from driveid.sim import drive as _drive
-
     nb = params.n_bodies
     bpar = np.zeros((nb, 12))
     for i, b in enumerate(params.bodies):
@@ -112,9 +111,9 @@ def _pack(params, motor):
             bpar[i, 5:] = (1.0, lg.sigma0, lg.sigma1, lg.sigma2, lg.fc, lg.fs, lg.vs)
     lpar = np.zeros((max(nb - 1, 1), 7))  # column 6: contact mode (kernel)
     for j, ln in enumerate(params.links):
-        if isinstance(ln, _drive.ShaftLink):
+        if isinstance(ln, _types.ShaftLink):
             lpar[j, :3] = (1.0, ln.k, ln.c)
-        elif isinstance(ln, _drive.BacklashLink):
+        elif isinstance(ln, _types.BacklashLink):
             if getattr(ln, "contact", "viscoelastic") != "viscoelastic":
                 raise ParameterError(
                     f"links[{j}]: contact={ln.contact!r} is not supported with LuGre bodies or "
@@ -207,13 +206,11 @@ def simulate_smooth(params, *, duration: float, fs: float = 1000.0, x0=None, v0=
     >>> round(float(r.v[0, -1]), 4)  # k_m V / (R c + k_m k_emf) = 0.2/0.011 rad/s
     18.1818
     """
-    from driveid.sim import drive as _drive  # lazy: drive delegates here
-
-    if not isinstance(params, _drive.DriveParams):
+    if not isinstance(params, _types.DriveParams):
         raise ParameterError(f"params must be a DriveParams; got {type(params).__name__}")
-    _drive._require(isinstance(duration, (int, float)) and 0 < duration < math.inf,
+    _types._require(isinstance(duration, (int, float)) and 0 < duration < math.inf,
                     "duration must be positive and finite [s]", duration)
-    _drive._require(isinstance(fs, (int, float)) and 0 < fs < math.inf,
+    _types._require(isinstance(fs, (int, float)) and 0 < fs < math.inf,
                     "fs must be positive; pass the output sampling rate in Hz", fs)
     rtol = _check_tol("rtol", rtol, 1e-12, 1e-2)
     if atol is not None:
@@ -225,16 +222,16 @@ def simulate_smooth(params, *, duration: float, fs: float = 1000.0, x0=None, v0=
     if n_out > 10_000_000:
         raise ParameterError(
             f"duration * fs must give at most 1e7 samples; lower fs or duration; got {n_out}")
-    x0 = _drive._input_grid(x0, "x0", None, nb)
-    v0 = _drive._input_grid(v0, "v0", None, nb)
+    x0 = _types._input_grid(x0, "x0", None, nb)
+    v0 = _types._input_grid(v0, "v0", None, nb)
     locked = np.array([b.locked for b in params.bodies])
     if np.any(v0[locked] != 0.0):
         raise ParameterError(f"locked bodies must start at rest (v0 = 0); got v0={v0.tolist()}")
-    torque = _drive._input_grid(torque, "torque", nb, n_out)
+    torque = _types._input_grid(torque, "torque", nb, n_out)
     fb = params.feedback
     if reference is None:
         reference = fb.reference if fb is not None else 0.0
-    reference = _drive._input_grid(reference, "reference", None, n_out)[None, :]
+    reference = _types._input_grid(reference, "reference", None, n_out)[None, :]
     inp = np.ascontiguousarray(np.vstack([torque, reference]))
 
     # state layout: x, v (, z) per free body, then the motor current
@@ -303,7 +300,7 @@ def simulate_smooth(params, *, duration: float, fs: float = 1000.0, x0=None, v0=
         if lay[2, i] >= 0:
             z[i] = out[lay[2, i]]
     energy = _energy(bpar, lpar, x, v, z, out[ny + 1:ny + 4], out[ny + 5], x0, v0)
-    return _drive.DriveResult(
+    return _types.DriveResult(
         t=t, x=x, v=v, command=out[ny], energy=energy, n_mode_switches=int(counts[0]),
         n_impacts=int(counts[1]), aborted=aborted, abort_reason=reason,
         abort_time=abort_time, params=params)

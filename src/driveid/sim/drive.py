@@ -6,7 +6,8 @@ arm, tool ...) joined by links. Body ``i`` obeys
 .. math:: J_i \ddot x_i = u_i + \tau_{fb}\,[i = b] - K_i x_i - F_{link} - F_{fric,i}
 
 with, while moving in direction ``s = sgn(x')``, ``F_fric = (c_mean + c_delta·s) x' +
-fk_mean·s + fk_delta`` (thesis 2.155, the sign conventions of ``shared/DESIGN.md``), and true
+fk_mean·s + fk_delta`` (thesis 2.155, the sign conventions of ``shared/DESIGN.md``; an optional
+ripple ``A sin(2π x/P + φ)`` adds to ``fk_mean``, see :mod:`driveid.sim.drive_types`), and true
 sticking: a body at rest stays stuck while the force the other elements apply lies in
 ``[fs_delta - fs_mean, fs_delta + fs_mean]`` (2.137, 2.138; Karnopp-like switching, the
 breakaway test runs on the applied force, not on a velocity band).
@@ -33,6 +34,9 @@ Feedback, one of:
   optional transport delay of whole periods, saturation and abort: the compiled kernel
   runs one control period at a time with the held torque.
 
+The parameter and result types live in :mod:`driveid.sim.drive_types` (re-exported here);
+this module chooses an engine: the exact closed form (:mod:`driveid.sim.free_decay_batch`),
+the event-located RK4 (:mod:`driveid.sim._kernels`) or the smooth integrator.
 :func:`driveid.sim.batch.simulate_drive_batch` runs many parameter sets in one compiled call
 (Monte Carlo).
 A body with dynamic (LuGre) friction, ``BodyParams.lugre``, or an electrical motor model,
@@ -57,18 +61,22 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
 
 import numpy as np
 
 from driveid.errors import ParameterError, SimulationError
-from driveid.io.record import Record
 from driveid.sim import _kernels as _k
-
-if TYPE_CHECKING:  # imported lazily at run time (validation), see BodyParams, DriveParams
-    from driveid.models.dynamic_friction import LuGreParams
-    from driveid.models.motor import MotorAmplifier
+from driveid.sim.drive_types import (
+    BacklashLink,
+    BodyParams,
+    DriveParams,
+    DriveResult,
+    PDFeedback,
+    ShaftLink,
+    _input_grid,
+    _require,
+)
 
 __all__ = [
     "BodyParams",
@@ -81,364 +89,34 @@ __all__ = [
 ]
 
 
-def _finite(owner: str, name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ParameterError(f"{owner}.{name} must be a finite number; got {value!r}")
-    return float(value)
+PAR_WIDTH = 11  # columns of the kernel's parameter rows (see _kernels._forces)
 
 
-def _require(ok: bool, message: str, value) -> None:
-    if not ok:
-        raise ParameterError(f"{message}; got {value!r}")
+def _body_row(b: BodyParams) -> list[float]:
+    wavenumber = 2.0 * math.pi / b.ripple_period if b.has_ripple else 0.0
+    return [b.J, b.K, b.c_mean, b.c_delta, b.fk_mean, b.fk_delta,
+            b.fs_delta - b.fs_mean, b.fs_delta + b.fs_mean,
+            b.ripple_amplitude, wavenumber, b.ripple_phase]
 
 
-@dataclass(frozen=True, kw_only=True)
-class BodyParams:
-    """One rigid body of the chain with its ground spring and friction.
-
-    Attributes
-    ----------
-    J : float
-        Inertia [kg·m²] (or mass [kg]); > 0.
-    K : float
-        Stiffness to ground [N·m/rad]; >= 0 (default 0: no spring).
-    c_mean, c_delta : float
-        Viscous friction ``c_mean + c_delta·sgn(x')`` [N·m·s/rad] (thesis 2.155).
-    fk_mean, fk_delta : float
-        Kinetic (Coulomb) friction ``fk_mean·sgn(x') + fk_delta`` [N·m]; fk_mean >= 0.
-    fs_mean, fs_delta : float or None
-        Static friction band ``[fs_delta - fs_mean, fs_delta + fs_mean]`` [N·m]; ``None``
-        takes the kinetic value. The band must enclose the kinetic band.
-    locked : bool
-        True: the body is clamped and never moves (a locked axis of the test bed).
-    lugre : driveid.models.dynamic_friction.LuGreParams or None
-        Dynamic (LuGre) friction on this body instead of the static map: then c_mean,
-        c_delta, fk_mean, fk_delta must be 0 and fs_mean, fs_delta None (simulated by the
-        smooth integrator ``driveid.sim._smooth``).
-    """
-
-    J: float
-    K: float = 0.0
-    c_mean: float = 0.0
-    c_delta: float = 0.0
-    fk_mean: float = 0.0
-    fk_delta: float = 0.0
-    fs_mean: float | None = None
-    fs_delta: float | None = None
-    locked: bool = False
-    lugre: LuGreParams | None = None
-
-    def __post_init__(self) -> None:
-        for name in ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta"):
-            _finite("BodyParams", name, getattr(self, name))
-        if self.lugre is not None:
-            from driveid.models.dynamic_friction import LuGreParams
-
-            _require(isinstance(self.lugre, LuGreParams),
-                     "BodyParams.lugre must be a LuGreParams or None", self.lugre)
-            static = [getattr(self, n) for n in ("c_mean", "c_delta", "fk_mean", "fk_delta",
-                                                   "fs_mean", "fs_delta")]
-            # fs_* may come back as 0.0 from dataclasses.replace of a filled instance
-            if any(v not in (None, 0.0) for v in static):
-                raise ParameterError(
-                    "choose one friction model: with BodyParams.lugre set, c_mean, c_delta, "
-                    "fk_mean, fk_delta must be 0 and fs_mean, fs_delta None; got "
-                    f"c_mean={self.c_mean}, c_delta={self.c_delta}, fk_mean={self.fk_mean}, "
-                    f"fk_delta={self.fk_delta}, fs_mean={self.fs_mean}, "
-                    f"fs_delta={self.fs_delta}")
-        _require(self.J > 0, "BodyParams.J must be positive [kg·m²]", self.J)
-        _require(self.K >= 0, "BodyParams.K must be >= 0 [N·m/rad]", self.K)
-        _require(self.fk_mean >= 0, "BodyParams.fk_mean must be >= 0 [N·m]", self.fk_mean)
-        fs_mean = self.fk_mean if self.fs_mean is None else _finite(
-            "BodyParams", "fs_mean", self.fs_mean)
-        fs_delta = self.fk_delta if self.fs_delta is None else _finite(
-            "BodyParams", "fs_delta", self.fs_delta)
-        object.__setattr__(self, "fs_mean", fs_mean)
-        object.__setattr__(self, "fs_delta", fs_delta)
-        eps = 1e-12 * max(1.0, abs(self.fk_mean) + abs(self.fk_delta))
-        if (fs_delta + fs_mean < self.fk_delta + self.fk_mean - eps
-                or fs_delta - fs_mean > self.fk_delta - self.fk_mean + eps):
-            raise ParameterError(
-                "static friction must hold at least the kinetic friction in each direction; "
-                "raise fs_mean or pass None; got "
-                f"fs_mean={fs_mean}, fs_delta={fs_delta}, fk_mean={self.fk_mean}, "
-                f"fk_delta={self.fk_delta}"
-            )
-
-    def _row(self) -> list[float]:
-        return [self.J, self.K, self.c_mean, self.c_delta, self.fk_mean, self.fk_delta,
-                self.fs_delta - self.fs_mean, self.fs_delta + self.fs_mean]
+def _link_row(ln) -> list[float]:
+    if ln is None:
+        row = [0.0] * 8
+    elif isinstance(ln, ShaftLink):
+        row = [_k.LINK_SHAFT, ln.k, ln.c, 0.0, 0.0, 0.0, 0.0, 0.0]
+    elif ln.contact == "restitution":
+        row = [_k.LINK_IMPACT, ln.k, ln.c, ln.gap_plus, ln.gap_minus, 0.0,
+               float(ln.restitution), ln.rest_velocity]
+    else:
+        row = [_k.LINK_BACKLASH, ln.k, ln.c, ln.gap_plus, ln.gap_minus,
+               float(ln.allow_tension), 0.0, 0.0]
+    return row + [0.0] * (PAR_WIDTH - 8)
 
 
-@dataclass(frozen=True, kw_only=True)
-class ShaftLink:
-    """Compliant shaft between two consecutive bodies, ``f = k δ + c δ'`` (thesis §2.1.3).
+def _feedback_row(fb: PDFeedback | None) -> list[float]:
+    row = [0.0] * 6 if fb is None else [1.0, fb.body, fb.P, fb.D, fb.delay, fb.saturation]
+    return row + [0.0] * (PAR_WIDTH - 6)
 
-    Attributes
-    ----------
-    k : float
-        Torsional stiffness [N·m/rad]; >= 0.
-    c : float
-        Torsional damping [N·m·s/rad]; >= 0.
-    """
-
-    k: float
-    c: float = 0.0
-
-    def __post_init__(self) -> None:
-        _require(_finite("ShaftLink", "k", self.k) >= 0, "ShaftLink.k must be >= 0", self.k)
-        _require(_finite("ShaftLink", "c", self.c) >= 0, "ShaftLink.c must be >= 0", self.c)
-
-    def _row(self) -> list[float]:
-        return [_k.LINK_SHAFT, self.k, self.c, 0.0, 0.0, 0.0, 0.0, 0.0]
-
-
-@dataclass(frozen=True, kw_only=True)
-class BacklashLink:
-    """Backlash between two consecutive bodies: deadzone plus Kelvin–Voigt contact (2.27-2.29).
-
-    Attributes
-    ----------
-    gap_plus, gap_minus : float
-        Clearances [rad], >= 0: contact when ``x_j - x_{j+1}`` exceeds ``gap_plus`` or falls
-        below ``-gap_minus``.
-    k : float
-        Contact stiffness [N·m/rad]; > 0.
-    c : float
-        Contact damping [N·m·s/rad]; >= 0.
-    allow_tension : bool
-        False (default): the contact never pulls, it opens when ``k δ + c δ'`` reaches zero
-        (Modelica ElastoBacklash); True: the thesis's linear contact, open when ``δ = 0``.
-    contact : {"viscoelastic", "restitution"}
-        ``"viscoelastic"`` (default): the Kelvin–Voigt contact above. ``"restitution"``: an
-        instantaneous Newton impact at the gap edge, ``v_rel' = -e v_rel`` with momentum
-        kept (``v1' = v1 - (1+e) m2/(m1+m2) v_rel``, ``v2' = v2 + (1+e) m1/(m1+m2) v_rel``;
-        a locked body has infinite inertia), losing ``½ μ (1 - e²) v_rel²`` [J],
-        ``μ = m1 m2/(m1+m2)``.
-    restitution : float or None
-        Coefficient of restitution e [-], 0 <= e <= 1; required with ``"restitution"``.
-    rest_velocity : float
-        Resting-contact rule of ``"restitution"`` [rad/s], > 0: an impact slower than this
-        (the tail of a Zeno sequence of bounces under a steady push) closes the compliant
-        ``k``, ``c`` contact instead, so the bodies move together until its force would
-        become tensile, then separate (default 1e-4).
-    """
-
-    gap_plus: float
-    gap_minus: float
-    k: float
-    c: float = 0.0
-    allow_tension: bool = False
-    contact: str = "viscoelastic"
-    restitution: float | None = None
-    rest_velocity: float = 1e-4
-
-    def __post_init__(self) -> None:
-        for name in ("gap_plus", "gap_minus", "c"):
-            _require(_finite("BacklashLink", name, getattr(self, name)) >= 0,
-                     f"BacklashLink.{name} must be >= 0", getattr(self, name))
-        _require(_finite("BacklashLink", "k", self.k) > 0, "BacklashLink.k must be positive",
-                 self.k)
-        _require(self.contact in ("viscoelastic", "restitution"),
-                 'BacklashLink.contact must be "viscoelastic" or "restitution"', self.contact)
-        if self.contact == "restitution":
-            _require(self.restitution is not None
-                     and 0.0 <= _finite("BacklashLink", "restitution", self.restitution) <= 1.0,
-                     "BacklashLink.restitution must be in [0, 1] with contact=\"restitution\"",
-                     self.restitution)
-            _require(not self.allow_tension, "a restitution contact cannot pull; pass "
-                     "allow_tension=False", self.allow_tension)
-            _require(_finite("BacklashLink", "rest_velocity", self.rest_velocity) > 0,
-                     "BacklashLink.rest_velocity must be positive [rad/s]", self.rest_velocity)
-        else:
-            _require(self.restitution is None, "BacklashLink.restitution needs "
-                     'contact="restitution"', self.restitution)
-
-    def _row(self) -> list[float]:
-        if self.contact == "restitution":
-            return [_k.LINK_IMPACT, self.k, self.c, self.gap_plus, self.gap_minus, 0.0,
-                    float(self.restitution), self.rest_velocity]
-        return [_k.LINK_BACKLASH, self.k, self.c, self.gap_plus, self.gap_minus,
-                float(self.allow_tension), 0.0, 0.0]
-
-
-@dataclass(frozen=True, kw_only=True)
-class PDFeedback:
-    """Delayed PD position feedback ``τ = P (r - x(t-Δ)) - D x'(t-Δ)`` on one body.
-
-    Attributes
-    ----------
-    P : float
-        Proportional gain [N·m/rad].
-    D : float
-        Derivative gain [N·m·s/rad] (on the measured velocity, not the error).
-    delay : float
-        Pure time delay Δ [s]; >= 0.
-    body : int
-        Index of the actuated and measured body (default 0, the motor).
-    reference : float
-        Step reference r [rad] applied at t = 0 (default 0); a time-varying reference is
-        passed to :func:`simulate_drive` as ``reference``.
-    saturation : float
-        Command limit [N·m]; > 0 (default inf).
-    abort_limit : float
-        Safety abort when ``|τ|`` before saturation exceeds it [N·m]; > 0 (default inf).
-    """
-
-    P: float
-    D: float
-    delay: float = 0.0
-    body: int = 0
-    reference: float = 0.0
-    saturation: float = math.inf
-    abort_limit: float = math.inf
-
-    def __post_init__(self) -> None:
-        for name in ("P", "D", "delay", "reference"):
-            _finite("PDFeedback", name, getattr(self, name))
-        _require(self.delay >= 0, "PDFeedback.delay must be >= 0 [s]", self.delay)
-        _require(isinstance(self.body, int) and self.body >= 0,
-                 "PDFeedback.body must be a body index >= 0", self.body)
-        for name in ("saturation", "abort_limit"):
-            value = getattr(self, name)
-            _require(isinstance(value, (int, float)) and value > 0 and not math.isnan(value),
-                     f"PDFeedback.{name} must be positive [N·m] (inf: none)", value)
-
-
-@dataclass(frozen=True, kw_only=True)
-class DriveParams:
-    """A chain of bodies, the links between neighbours and an optional feedback.
-
-    Attributes
-    ----------
-    bodies : tuple of BodyParams
-        The bodies, in chain order (e.g. motor, arm, tool).
-    links : tuple of ShaftLink, BacklashLink or None
-        ``len(bodies) - 1`` links; ``links[j]`` joins bodies ``j`` and ``j + 1``; None: no
-        connection.
-    feedback : PDFeedback or None
-        Position feedback (default none).
-    motor : driveid.models.motor.MotorAmplifier or None
-        Electrical motor/amplifier on the feedback body (body 0 without feedback): the
-        feedback or external command becomes the amplifier input [V or A, per the model]
-        (simulated by the smooth integrator ``driveid.sim._smooth``).
-    """
-
-    bodies: tuple
-    links: tuple = ()
-    feedback: PDFeedback | None = None
-    motor: MotorAmplifier | None = None
-
-    def __post_init__(self) -> None:
-        bodies, links = tuple(self.bodies), tuple(self.links)
-        object.__setattr__(self, "bodies", bodies)
-        object.__setattr__(self, "links", links)
-        _require(len(bodies) >= 1 and all(isinstance(b, BodyParams) for b in bodies),
-                 "DriveParams.bodies must be a non-empty sequence of BodyParams", self.bodies)
-        _require(len(links) == len(bodies) - 1,
-                 f"DriveParams.links must hold len(bodies) - 1 = {len(bodies) - 1} links",
-                 len(links))
-        _require(all(ln is None or isinstance(ln, (ShaftLink, BacklashLink)) for ln in links),
-                 "DriveParams.links must be ShaftLink, BacklashLink or None", links)
-        fb = self.feedback
-        if fb is not None:
-            _require(isinstance(fb, PDFeedback), "DriveParams.feedback must be a PDFeedback",
-                     fb)
-            _require(fb.body < len(bodies), "PDFeedback.body must index a body", fb.body)
-            _require(not bodies[fb.body].locked, "the feedback body must not be locked",
-                     fb.body)
-        if self.motor is not None:
-            try:  # lazy: sim imports models, and the motor model is optional
-                from driveid.models.motor import MotorAmplifier
-            except ImportError:  # pragma: no cover - only while the model is missing
-                raise ParameterError("DriveParams.motor needs driveid.models.motor."
-                                     "MotorAmplifier, which is not available") from None
-            _require(isinstance(self.motor, MotorAmplifier),
-                     "DriveParams.motor must be a driveid.models.motor.MotorAmplifier or None",
-                     self.motor)
-
-    @property
-    def smooth(self) -> bool:
-        """True if a body has LuGre friction or a motor model is set (smooth integrator)."""
-        return self.motor is not None or any(b.lugre is not None for b in self.bodies)
-
-    @property
-    def n_bodies(self) -> int:
-        """Number of bodies [-]."""
-        return len(self.bodies)
-
-
-@dataclass(frozen=True)
-class DriveResult:
-    """Sampled response of :func:`simulate_drive`.
-
-    Built by keyword with every field below (other simulators of the package, e.g. the
-    smooth integrator ``driveid.sim._smooth``, return it too): ``DriveResult(t=, x=, v=,
-    command=, energy=, n_mode_switches=, n_impacts=, aborted=, abort_reason=, abort_time=,
-    params=)``.
-
-    Attributes
-    ----------
-    t : ndarray, shape (n,)
-        Output times [s].
-    x, v : ndarray, shape (n_bodies, n)
-        Positions [rad] and velocities [rad/s]; NaN after an abort.
-    command : ndarray, shape (n,) or (n_bodies, n)
-        Saturated feedback or controller command [N·m] (zeros without feedback); shape
-        (n_bodies, n) when a controller callback returns one torque per body.
-    energy : dict of str to ndarray, shape (n,)
-        ``input`` (work of external torques and command) [J], ``dissipated`` (friction,
-        viscous, shaft and contact damping, contact release, impacts) [J], ``kinetic``,
-        ``potential`` (ground springs, shafts, closed contacts) [J], ``contact_release``
-        (the part of ``dissipated`` lost when no-tension contacts open) [J], ``impact``
-        (the part lost in restitution impacts) [J] and ``initial`` (scalar) [J]. A
-        simulator may add keys; the balance ``initial + input = kinetic + potential +
-        dissipated`` must hold.
-    n_mode_switches : int
-        Stick, breakaway and reversal transitions of the bodies [-].
-    n_impacts : int
-        Contact closures of the backlash links [-].
-    aborted : bool
-        True if the safety abort stopped the run.
-    abort_reason : str or None
-        Why the run stopped early.
-    abort_time : float or None
-        Time of the abort [s].
-    params : DriveParams
-        The simulated drive.
-    """
-
-    t: np.ndarray
-    x: np.ndarray
-    v: np.ndarray
-    command: np.ndarray
-    energy: dict = field(repr=False)
-    n_mode_switches: int
-    n_impacts: int
-    aborted: bool
-    abort_reason: str | None
-    abort_time: float | None
-    params: DriveParams = field(repr=False)
-
-    def record(self, body: int = 0) -> Record:
-        """Return the response of one body as a :class:`~driveid.io.record.Record`.
-
-        Parameters
-        ----------
-        body : int
-            Body index.
-
-        Returns
-        -------
-        Record
-            ``t`` [s], ``x`` [rad], ``v`` [rad/s], ``u`` = command [N·m] (finite part only).
-        """
-        keep = np.isfinite(self.x[body])
-        meta = {"source": "driveid.sim.simulate_drive", "body": body,
-                "units": {"x": "rad", "v": "rad/s", "u": "N·m"}}
-        u = self.command if self.command.ndim == 1 else self.command[body]
-        return Record(t=self.t[keep], x=self.x[body][keep], v=self.v[body][keep],
-                      u=u[keep], meta=meta, max_jitter=None)
 
 
 def _highest_rate(params: DriveParams) -> float:
@@ -460,22 +138,6 @@ def _highest_rate(params: DriveParams) -> float:
         rate = max(rate, math.sqrt(k / b.J), c / b.J)
     return rate
 
-
-def _input_grid(value, name: str, n_bodies: int | None, n: int) -> np.ndarray:
-    arr = np.asarray(0.0 if value is None else value, dtype=float)
-    shape = (n,) if n_bodies is None else (n_bodies, n)
-    if n_bodies is not None and arr.ndim == 1 and arr.shape[0] == n_bodies:
-        arr = arr[:, None]
-    try:
-        arr = np.ascontiguousarray(np.broadcast_to(arr, shape), dtype=float)
-    except ValueError:
-        raise ParameterError(
-            f"{name} must be a scalar or broadcast to shape {shape} (sampled at the output "
-            f"times); got shape {np.shape(value)}"
-        ) from None
-    if not np.all(np.isfinite(arr)):
-        raise ParameterError(f"{name} must be finite; got a non-finite value")
-    return arr
 
 
 def simulate_drive(
@@ -619,11 +281,13 @@ def simulate_drive(
                    max_events_per_step)
     nb, torque, fb = params.n_bodies, run["torque"], params.feedback
     exact_ok = (nb == 1 and not run["locked"][0] and params.bodies[0].K > 0 and fb is None
+                and not params.bodies[0].has_ripple
                 and np.all(torque == torque[:, :1]))
     if method == "exact" and not exact_ok:
         raise ParameterError(
-            'method="exact" needs one unlocked body with K > 0, no feedback and a constant '
-            f"torque; use method=\"rk4\"; got {nb} bodies, feedback={fb is not None}"
+            'method="exact" needs one unlocked body with K > 0, no feedback, no friction '
+            f"ripple and a constant torque; use method=\"rk4\"; got {nb} bodies, "
+            f"feedback={fb is not None}"
         )
     if method != "rk4" and exact_ok:
         return _simulate_exact(params, duration, fs, run["x0"], run["v0"],
@@ -634,8 +298,13 @@ def simulate_drive(
     return _finish(params, run, *out[:8], max_events_per_step)
 
 
-def _prepare(params, duration, fs, x0, v0, torque, reference, max_step, max_events) -> dict:
-    """Validate the run and build the kernel's inputs (see :func:`_k.drive_kernel`)."""
+def _prepare(params, duration, fs, x0, v0, torque, reference, max_step, max_events,
+             full_grid: bool = False) -> dict:
+    """Validate the run and build the kernel's inputs (see :func:`_k.drive_kernel`).
+
+    ``run["torque"]`` has one column for a constant torque and reference unless
+    ``full_grid`` (the controller path slices it per control period).
+    """
     _require(isinstance(duration, (int, float)) and 0 < duration < math.inf,
              "duration must be positive and finite [s]", duration)
     _require(isinstance(fs, (int, float)) and 0 < fs < math.inf,
@@ -649,11 +318,16 @@ def _prepare(params, duration, fs, x0, v0, torque, reference, max_step, max_even
     locked = np.array([b.locked for b in params.bodies])
     if np.any(v0[locked] != 0.0):
         raise ParameterError(f"locked bodies must start at rest (v0 = 0); got v0={v0.tolist()}")
-    torque = _input_grid(torque, "torque", nb, n_out)
     fb = params.feedback
     if reference is None:
         reference = 0.0 if fb is None else fb.reference
-    reference = _input_grid(reference, "reference", None, n_out)[None, :]
+    # constant inputs go to the kernel as one column (it holds values beyond the ends):
+    # no (n_bodies + 1, n) grid to build for the common free or step run
+    constant = (not full_grid and np.ndim(reference) == 0
+                and (torque is None or np.ndim(torque) == 0 or np.shape(torque) == (nb,)))
+    n_in = 1 if constant else n_out
+    torque = _input_grid(torque, "torque", nb, n_in)
+    reference = _input_grid(reference, "reference", None, n_in)[None, :]
     rate = _highest_rate(params)
     if max_step is None:
         max_step = 0.2 / rate if rate > 0 else 1.0 / fs
@@ -661,10 +335,9 @@ def _prepare(params, duration, fs, x0, v0, torque, reference, max_step, max_even
              "max_step must be positive [s]", max_step)
     if fb is not None and fb.delay > 0:
         max_step = min(max_step, fb.delay)
-    rows = [b._row() for b in params.bodies]
-    rows += [[0.0] * 8 if ln is None else ln._row() for ln in params.links]
-    rows.append([0.0] * 8 if fb is None else
-                [1.0, fb.body, fb.P, fb.D, fb.delay, fb.saturation, 0.0, 0.0])
+    rows = [_body_row(b) for b in params.bodies]
+    rows += [_link_row(ln) for ln in params.links]
+    rows.append(_feedback_row(fb))
     return {
         "t": np.arange(n_out) / fs, "n_out": n_out, "x0": x0, "v0": v0, "locked": locked,
         "torque": torque, "fs": float(fs), "max_step": max_step,
@@ -694,7 +367,7 @@ def _finish(params, run, x, v, cmd, e, counts, status, abort_index, abort_value,
         abort_time = abort_index * h
         reason = (f"|command| = {abs(abort_value):.6g} N·m before saturation exceeded "
                   f"abort_limit={run['abort_limit']:g} N·m at t={abort_time:.6g} s")
-    energy = _energy(params, x, v, e, run["x0"], run["v0"])
+    energy = _LazyEnergy(lambda: _energy(params, x, v, e, run["x0"], run["v0"]))
     return DriveResult(t=run["t"], x=x, v=v, command=cmd, energy=energy,
                        n_mode_switches=int(counts[0]), n_impacts=int(counts[1]),
                        aborted=aborted, abort_reason=reason, abort_time=abort_time,
@@ -720,7 +393,8 @@ def _simulate_controlled(params, duration, fs, x0, v0, torque, max_step, max_eve
     for name, value in (("saturation", saturation), ("abort_limit", abort_limit)):
         _require(isinstance(value, (int, float)) and value > 0 and not math.isnan(value),
                  f"{name} must be positive [N·m] (inf: none)", value)
-    run = _prepare(params, duration, fs, x0, v0, torque, None, max_step, max_events)
+    run = _prepare(params, duration, fs, x0, v0, torque, None, max_step, max_events,
+                   full_grid=True)
     hi, lo = max(fs, control_rate), min(fs, control_rate)
     ratio = round(hi / lo)
     if abs(hi / lo - ratio) > 1e-9 * ratio:
@@ -807,7 +481,7 @@ def _stored_contacts(params, x, modes) -> float:
 
 
 def _simulate_exact(params, duration, fs, x0, v0, u0) -> DriveResult:
-    from driveid.sim.batch import simulate_free_decay_batch  # batch builds on this module
+    from driveid.sim.free_decay_batch import simulate_free_decay_batch
 
     b = params.bodies[0]
     batch = simulate_free_decay_batch(
@@ -815,17 +489,51 @@ def _simulate_exact(params, duration, fs, x0, v0, u0) -> DriveResult:
         fk_delta=b.fk_delta, fs_mean=b.fs_mean, fs_delta=b.fs_delta, x0=x0[0], v0=v0[0],
         u0=u0, duration=duration, fs=fs, return_velocity=True)
     x, v = batch.x, batch.v
-    kin, pot = _stored(params, x, v)
-    kin0, pot0 = _stored(params, x0[:, None], v0[:, None])
-    initial = float(kin0[0] + pot0[0])
-    work = u0 * (x[0] - x0[0])
     n_switch = int(batch.n_reversals[0])  # every velocity zero: a reversal or the final stick
-    energy = {"input": work, "dissipated": initial + work - kin - pot, "kinetic": kin,
-              "potential": pot, "contact_release": np.zeros_like(work),
-              "impact": np.zeros_like(work), "initial": initial}
+
+    def balance() -> dict:
+        kin, pot = _stored(params, x, v)
+        kin0, pot0 = _stored(params, x0[:, None], v0[:, None])
+        initial = float(kin0[0] + pot0[0])
+        work = u0 * (x[0] - x0[0])
+        return {"input": work, "dissipated": initial + work - kin - pot, "kinetic": kin,
+                "potential": pot, "contact_release": np.zeros_like(work),
+                "impact": np.zeros_like(work), "initial": initial}
+
+    energy = _LazyEnergy(balance)
     return DriveResult(t=batch.t, x=x, v=v, command=np.zeros_like(batch.t), energy=energy,
                        n_mode_switches=n_switch, n_impacts=0, aborted=False, abort_reason=None,
                        abort_time=None, params=params)
+
+
+class _LazyEnergy(Mapping):
+    """The energy balance of a result, computed on first access.
+
+    Half of a short single run's cost was this bookkeeping (kinetic and potential energy
+    arrays of every sample); most callers want positions only, so it waits until asked.
+    """
+
+    def __init__(self, build) -> None:
+        self._build = build
+        self._data: dict | None = None
+
+    def _get(self) -> dict:
+        if self._data is None:
+            self._data = self._build()
+            self._build = None
+        return self._data
+
+    def __getitem__(self, key):
+        return self._get()[key]
+
+    def __iter__(self):
+        return iter(self._get())
+
+    def __len__(self) -> int:
+        return len(self._get())
+
+    def __repr__(self) -> str:
+        return "{...}" if self._data is None else repr(self._data)
 
 
 def _stored(params: DriveParams, x, v):

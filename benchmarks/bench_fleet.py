@@ -1,0 +1,156 @@
+"""Fleet benchmark (issue 16): detection on a simulated plant, and Dask throughput.
+
+Writes a simulated fleet (default 200 axes × 12 months, 10 % faulty; driveid.sim.fleet),
+identifies every record on a local Dask cluster into a SQLite catalogue, makes a blueprint
+from every axis's first 3 months, judges every axis-month with only the data up to it, and
+prints
+
+* detection rate of faulty axes, false-alarm rate on healthy axis-months (target <= 1 %),
+  median delay from fault onset to detection [months];
+* throughput [records/s] serial in this process (the baseline), on 1 and 2 Dask workers,
+  the ratios, and what 100 000 axes per 8-hour shift needs.
+
+Run: ``MPLBACKEND=Agg .venv/bin/python benchmarks/bench_fleet.py [--axes 200] [--months 12]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from driveid.catalog import Catalog
+from driveid.fleet import identify_file, identify_many
+from driveid.health import assess_axis, make_blueprint
+from driveid.sim.fleet import read_fleet_truth, simulate_fleet
+
+
+def _throughput(files, n_workers, folder):
+    for suffix in ("", "-wal", "-shm"):  # a fresh catalogue: nothing may be skipped
+        (folder / f"throughput-{n_workers}.sqlite{suffix}").unlink(missing_ok=True)
+    summary = identify_many([str(f) for f in files], method_options={"mass": 1.0},
+                            catalog=folder / f"throughput-{n_workers}.sqlite",
+                            n_workers=n_workers, progress=False)
+    return summary.records_per_second, summary.cpu_seconds_per_record
+
+
+def _throughput_study(files, n_records, folder):
+    # throughput: serial baseline in this process, then 1 and 2 Dask workers, same records
+    sample = files[: n_records]
+    identify_file(sample[0], method_options={"mass": 1.0})  # import and compile first
+    t0 = time.perf_counter()
+    for f in sample:
+        identify_file(f, method_options={"mass": 1.0})
+    serial = len(sample) / (time.perf_counter() - t0)
+    try:
+        load = os.getloadavg()[0]
+    except OSError:
+        load = float("nan")
+    print(f"load average {load:.1f} on {os.cpu_count()} cores (throughput shares them)")
+    t0 = time.process_time()
+    for f in sample:
+        identify_file(f, method_options={"mass": 1.0})
+    serial_cpu = (time.process_time() - t0) / len(sample)
+    one, cpu_one = _throughput(sample, 1, folder)
+    two, cpu_two = _throughput(sample, 2, folder)
+    print(f"processor time per record: serial {serial_cpu * 1e3:.0f} ms, in Dask tasks "
+          f"{cpu_one * 1e3:.0f} ms (1 worker), {cpu_two * 1e3:.0f} ms (2 workers)")
+    print(f"throughput on {len(sample)} records: serial {serial:.1f} records/s; Dask 1 worker "
+          f"{one:.1f} ({one / serial:.2f}× serial); 2 workers {two:.1f} ({two / one:.2f}× one "
+          "worker)")
+    need = 100_000 / (8 * 3600)
+    for label, cost in (("processor time", cpu_one), ("wall time on this loaded machine",
+                                                         1.0 / one)):
+        print(f"100 000 axes per 8-h shift = {need:.2f} records/s; at {cost * 1e3:.0f} ms per "
+              f"record ({label}) that is {need * cost:.2f} busy cores -> "
+              f"{max(1, math.ceil(2 * need * cost))} worker(s) with 2x headroom")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--axes", type=int, default=200)
+    parser.add_argument("--months", type=int, default=12)
+    parser.add_argument("--faulty", type=float, default=0.1)
+    parser.add_argument("--throughput-records", type=int, default=160)
+    parser.add_argument("--alpha", type=float, default=0.01)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", type=Path, default=None, help="Keep the fleet here.")
+    parser.add_argument("--reuse", action="store_true",
+                        help="Reuse the fleet and catalogue already under --out.")
+    parser.add_argument("--skip-throughput", action="store_true")
+    parser.add_argument("--skip-detection", action="store_true")
+    args = parser.parse_args()
+    folder = args.out or Path(tempfile.mkdtemp(prefix="driveid-fleet-"))
+    t0 = time.perf_counter()
+    if args.reuse and (folder / "plant" / "truth.csv").is_file():
+        truth = read_fleet_truth(folder / "plant")
+        print(f"reusing {len(truth.rows)} records in {folder / 'plant'}")
+    else:
+        truth = simulate_fleet(folder / "plant", n_axes=args.axes, n_months=args.months,
+                               faulty_fraction=args.faulty, seed=args.seed, overwrite=True)
+        print(f"simulated {len(truth.rows)} records in {time.perf_counter() - t0:.1f} s "
+              f"({folder / 'plant'})")
+    files = sorted((folder / "plant").glob("*/*/20*.csv"))
+
+    if not args.skip_throughput:
+        _throughput_study(files, args.throughput_records, folder)
+    if args.skip_detection:
+        return
+    # the whole fleet on 2 workers into one catalogue
+    catalog = folder / "catalog.sqlite"
+    t0 = time.perf_counter()
+    summary = identify_many(str(folder / "plant" / "*" / "*" / "20*.csv"),
+                            method_options={"mass": 1.0}, catalog=catalog,
+                            machine_type="demo", n_workers=2, progress=False)
+    print(f"fleet: {summary.n_ok} identified, {summary.n_failed} failed in "
+          f"{time.perf_counter() - t0:.0f} s ({summary.records_per_second:.1f} records/s)")
+
+    with Catalog(catalog) as cat:
+        entries = cat.entries(machine_type="demo")
+    bp = make_blueprint(entries, machine_type="demo", first=3)
+    by_axis: dict[tuple[str, str], list] = {}
+    for e in entries:
+        by_axis.setdefault((e.machine, e.axis), []).append(e)
+    axes = truth.axes()
+    healthy_months = false_alarms = watch_months = 0
+    detected, delays, n_faulty = 0, [], 0
+    by_kind: dict[str, list[int]] = {}
+    for key, rows in by_axis.items():
+        health = assess_axis(rows, bp, alpha=args.alpha)
+        fault, onset = axes[key]["fault"], axes[key]["onset_month"]
+        verdicts = health.verdicts
+        if fault != "none":
+            n_faulty += 1
+        first_alarm = None
+        for month, verdict in enumerate(verdicts):
+            faulty_now = onset is not None and month >= onset
+            if not faulty_now:
+                healthy_months += 1
+                false_alarms += verdict == "degraded"
+                watch_months += verdict == "watch"
+            elif verdict == "degraded" and first_alarm is None:
+                first_alarm = month
+        if fault != "none":
+            by_kind.setdefault(fault, [0, 0])[1] += 1
+            if first_alarm is not None:
+                detected += 1
+                by_kind[fault][0] += 1
+                delays.append(first_alarm - onset)
+    print(f"blueprint: {bp.source['n_axes']} axes; monitored {', '.join(bp.monitored)}")
+    print(f"detection rate: {detected}/{n_faulty} faulty axes = "
+          f"{detected / max(n_faulty, 1):.1%} ("
+          + ", ".join(f"{k} {d}/{n}" for k, (d, n) in sorted(by_kind.items())) + ")")
+    print(f"false-alarm rate: {false_alarms}/{healthy_months} healthy axis-months = "
+          f"{false_alarms / healthy_months:.2%} (target <= 1 %); 'watch' on "
+          f"{watch_months / healthy_months:.1%}")
+    if delays:
+        print(f"median delay from onset to detection: {statistics.median(delays):.1f} months "
+              f"(onset month counts as 0; range {min(delays)}-{max(delays)})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,168 @@
+"""Click types and checks for numeric options (issue 12): no NaN, inf or absurd value passes.
+
+``--noise nan`` and ``--K nan`` were once taken as "none", ``--mass 1e308`` printed K = inf
+with exit 0 and ``--omega-c 1e9`` tried to allocate 32 TiB. Use these types on every numeric
+option::
+
+    @click.option("--noise", type=NonNegativeFloat(), default=0.0)
+    @click.option("--fs", type=PositiveFloat(max=1e7))
+    @click.option("--n-D", type=BoundedInt(1000, min=1))
+
+and :func:`check_allocation` once the sizes are known. A bad value is a click usage error
+(exit 2, one line naming the option, the rule and the value).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import click
+
+from driveid.io.consistency import available_memory, check_allocation, check_count
+
+__all__ = ["FiniteFloat", "PositiveFloat", "NonNegativeFloat", "BoundedInt",
+           "check_allocation", "check_count", "available_memory", "FLOAT_LIMIT"]
+
+#: Largest magnitude a float option accepts by default: far beyond any physical value in
+#: SI units, yet small enough that squares and products of two options stay finite.
+FLOAT_LIMIT = 1e100
+
+
+class FiniteFloat(click.ParamType):
+    """A finite float, optionally bounded: NaN, inf and magnitudes above ``max`` refused.
+
+    Parameters
+    ----------
+    min : float, optional
+        Smallest value accepted (inclusive) [option's unit].
+    max : float
+        Largest magnitude accepted [option's unit]; default :data:`FLOAT_LIMIT`.
+    allow_inf : bool
+        Accept ``inf`` (e.g. "no limit" for ``--abort-limit``); NaN is always refused.
+    """
+
+    name = "float"
+    rule = "a finite number"
+
+    def __init__(self, min: float | None = None, max: float = FLOAT_LIMIT,
+                 allow_inf: bool = False) -> None:
+        self.min = min
+        self.max = max
+        self.allow_inf = allow_inf
+
+    def _check(self, value: float) -> str | None:
+        return None
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> float:
+        """Convert and check a value (click API).
+
+        Parameters
+        ----------
+        value : str or float
+            The text given on the command line (or a default).
+        param : click.Parameter or None
+            The option.
+        ctx : click.Context or None
+            The context.
+
+        Returns
+        -------
+        float
+            The checked value.
+        """
+        if isinstance(value, float) and math.isfinite(value):
+            number = value
+        else:
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                self.fail(f"expected {self.rule}; got {value!r}", param, ctx)
+        if self.allow_inf and number == math.inf:
+            return number
+        if not math.isfinite(number):
+            self.fail(f"must be {self.rule}; got {value!r} (NaN and inf are not accepted; "
+                      "leave the option out for 'none')", param, ctx)
+        if abs(number) > self.max:
+            self.fail(f"must be at most {self.max:g} in magnitude; got {value!r} (check the "
+                      "unit: options are in SI)", param, ctx)
+        if self.min is not None and number < self.min:
+            self.fail(f"must be >= {self.min:g}; got {value!r}", param, ctx)
+        problem = self._check(number)
+        if problem:
+            self.fail(f"must be {problem}; got {value!r}", param, ctx)
+        return number
+
+
+class PositiveFloat(FiniteFloat):
+    """A finite float > 0 (rates, durations, masses, stiffnesses)."""
+
+    name = "positive float"
+    rule = "a finite number > 0"
+
+    def _check(self, value: float) -> str | None:
+        return None if value > 0 else "> 0"
+
+
+class NonNegativeFloat(FiniteFloat):
+    """A finite float >= 0 (noise levels, delays, friction magnitudes)."""
+
+    name = "non-negative float"
+    rule = "a finite number >= 0"
+
+    def _check(self, value: float) -> str | None:
+        return None if value >= 0 else ">= 0"
+
+
+class BoundedInt(click.ParamType):
+    """An integer between ``min`` and ``limit`` (counts of runs, gains, iterations).
+
+    Parameters
+    ----------
+    limit : int
+        Largest value accepted [-].
+    min : int
+        Smallest value accepted [-].
+    override : str, optional
+        How a user lifts the limit, appended to the message.
+    """
+
+    name = "integer"
+
+    def __init__(self, limit: int, min: int = 0, override: str | None = None) -> None:
+        self.limit = int(limit)
+        self.min = int(min)
+        self.override = override
+
+    def convert(self, value: Any, param: Any, ctx: Any) -> int:
+        """Convert and check a value (click API).
+
+        Parameters
+        ----------
+        value : str or int
+            The text given on the command line (or a default).
+        param : click.Parameter or None
+            The option.
+        ctx : click.Context or None
+            The context.
+
+        Returns
+        -------
+        int
+            The checked value.
+        """
+        if isinstance(value, bool):
+            self.fail(f"expected an integer; got {value!r}", param, ctx)
+        if isinstance(value, int):
+            number = value
+        else:
+            try:
+                number = int(str(value).strip())
+            except ValueError:
+                self.fail(f"expected an integer; got {value!r}", param, ctx)
+        if number < self.min:
+            self.fail(f"must be >= {self.min}; got {number}", param, ctx)
+        if number > self.limit:
+            hint = f"; {self.override}" if self.override else ""
+            self.fail(f"must be at most {self.limit}; got {number}{hint}", param, ctx)
+        return number

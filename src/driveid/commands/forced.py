@@ -1,0 +1,51 @@
+"""``driveid identify forced`` and ``driveid identify envelope``: thin wrappers."""
+
+from __future__ import annotations
+
+import click
+
+from driveid.commands import clean_errors
+from driveid.commands._output import emit, output_options, plot_of
+from driveid.commands._record_options import record_options
+
+__all__ = ["forced_command", "envelope_command"]
+
+
+@click.command("forced")
+@click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]...")
+@click.option("--omega", type=float, multiple=True,
+              help="Excitation frequency [rad/s]: once for all FILES or once per FILE "
+                   "(default: estimated from each run's force).")
+@click.option("--K", "K_known", type=float, default=None,
+              help="Known stiffness K [N/m or N·m/rad].")
+@record_options
+@output_options
+@clean_errors
+def forced_command(files, omega, K_known, record_opts, output_opts):
+    """J, C, K from steady sinusoidal runs without feedback (one FILE per frequency)."""
+    from driveid.identify.forced import estimate_forced_response
+
+    records = record_opts.read_all(files)
+    om = None if not omega else (omega[0] if len(omega) == 1 else list(omega))
+    est = estimate_forced_response(records, omega=om, K_known=K_known)
+    emit(est, output_opts, records=records, figure=lambda: plot_of(est, records),
+         header=f"method: {est.method}   runs: {len(records)}")
+
+
+@click.command("envelope")
+@click.argument("file", metavar="FILE[@T0:T1]")
+@click.option("--mass", "--J", "mass", type=float, default=None,
+              help="Known mass or inertia J [kg or kg·m²].")
+@click.option("--min-snr", type=float, default=10.0, show_default=True,
+              help="Smallest accepted signal-to-noise ratio of the decay [-].")
+@record_options
+@output_options
+@clean_errors
+def envelope_command(file, mass, min_snr, record_opts, output_opts):
+    """Viscous and Coulomb damping from the Hilbert envelope of a free decay in FILE."""
+    from driveid.identify.hilbert import estimate_envelope_damping
+
+    record = record_opts.read(file)
+    est = estimate_envelope_damping(record, mass=mass, min_snr=min_snr)
+    emit(est, output_opts, records=[record], figure=lambda: plot_of(est, record),
+         header=f"method: {est.method}")

@@ -1,0 +1,122 @@
+"""``driveid validate RESULT.json FILE...``: simulate an identified model on records."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import click
+
+from driveid.commands import clean_errors
+from driveid.commands._record_options import record_options
+from driveid.errors import FileFormatError, IdentificationError
+
+__all__ = ["validate_command"]
+
+SCHEMA = "driveid-validate/1"
+
+
+def _load_estimate(path: Path):
+    from driveid.identify.estimate import Estimate
+
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise FileFormatError(f"cannot read the result file {path}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(
+            f"{path} is not JSON ({exc.msg} at line {exc.lineno}); pass the file written "
+            "by an identify command's --json") from None
+    if not isinstance(data, dict) or "parameters" not in data:
+        raise FileFormatError(
+            f"{path} has no 'parameters': pass the JSON written by an identify command's "
+            "--json (schema driveid-result/1)")
+    try:
+        return Estimate.from_dict(data)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise FileFormatError(f"{path}: {exc}") from None
+
+
+def _index_of(record, estimate, position: int, n_files: int):
+    """Which of the estimate's records this file is (by content hash), or None (held out)."""
+    digest = record.meta.get("sha256")
+    hashes = [i.get("sha256") for i in estimate.inputs]
+    if digest and digest in hashes:
+        return hashes.index(digest)
+    if not any(hashes) and estimate.data_used.get("release_x") is not None and \
+            len(estimate.data_used["release_x"]) == n_files:
+        return position  # an in-memory estimate of the same files, in the same order
+    return None
+
+
+@click.command("validate")
+@click.argument("result", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]...")
+@click.option("--lags", type=click.IntRange(1, 1000), default=20, show_default=True,
+              help="Autocorrelation lags of the Ljung–Box whiteness test.")
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
+@click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write an overlay/residual figure (PNG, PDF or SVG).")
+@click.option("--overwrite", is_flag=True, help="Replace an existing figure.")
+@record_options
+@clean_errors
+def validate_command(result, files, lags, as_json, figure, overwrite, record_opts):
+    """Simulate the model identified in RESULT.json on FILEs: fit %, residual whiteness.
+
+    A FILE the estimate was computed from (same content) is simulated from the estimate's
+    fitted release; any other FILE is held out: its release is fitted with the model fixed,
+    and its residual rms is the prediction error.
+    """
+    from driveid.validate import compare
+
+    estimate = _load_estimate(result)
+    records = record_opts.read_all(files)
+    comparisons = []
+    for k, record in enumerate(records):
+        index = _index_of(record, estimate, k, len(records))
+        comparisons.append(compare(record, estimate, index=index, lags=lags))
+    if figure is not None:
+        import matplotlib.pyplot as plt
+
+        from driveid.report.figures import save_figure
+
+        fig, axes = plt.subplots(3, len(comparisons), figsize=(8 * len(comparisons), 7),
+                                 constrained_layout=True, squeeze=False)
+        for k, c in enumerate(comparisons):
+            c.plot(ax=axes[:, k])
+            axes[0, k].set_title(str(files[k]))
+        save_figure(fig, figure, overwrite=overwrite)
+    for spec, c in zip(files, comparisons, strict=True):
+        for message in c.warnings:
+            click.echo(f"warning: {spec}: {message}", err=True)
+    fits = [c.fit for c in comparisons]
+    n_total = sum(c.t.size for c in comparisons)
+    rms = math.sqrt(sum(c.residual_rms**2 * c.t.size for c in comparisons) / n_total)
+    if as_json:
+        out = {
+            "schema": SCHEMA,
+            "method": estimate.method,
+            "result": str(result),
+            "fit": min(fits),
+            "residual_rms": rms,
+            "whiteness": {"white": all(c.whiteness["white"] for c in comparisons),
+                          "p_value": min(c.whiteness["p_value"] for c in comparisons),
+                          "test": "ljung-box", "lags": lags},
+            "records": [dict(c.to_dict(), path=str(spec))
+                        for spec, c in zip(files, comparisons, strict=True)],
+        }
+        click.echo(json.dumps(out, indent=2))
+        return
+    if not comparisons:
+        raise IdentificationError("no record to validate")
+    rows = [("file", "fit %", "residual rms", "Ljung–Box p", "white", "held out")]
+    for spec, c in zip(files, comparisons, strict=True):
+        rows.append((str(spec), f"{c.fit:.3f}", f"{c.residual_rms:.3g}",
+                     f"{c.whiteness['p_value']:.3g}", "yes" if c.whiteness["white"] else "NO",
+                     "yes" if c.held_out else "no"))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    for n, row in enumerate(rows):
+        click.echo("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)))
+        if n == 0:
+            click.echo("  ".join("-" * w for w in widths))

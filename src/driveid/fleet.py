@@ -1,0 +1,416 @@
+"""Fleet identification on Dask: one task per record, results into the catalogue.
+
+``identify_many`` finds the records (paths or glob patterns), skips those whose SHA-256 is
+already catalogued (resumable), and submits one task per record to a Dask cluster — a
+local one by default (two single-threaded worker processes on the loopback interface), or
+an existing scheduler. Each task reads its own file (paths are shipped, not arrays, so the
+client's memory does not grow with the fleet) and returns a small result in the
+``driveid-result/1`` schema, or the error that stopped it. The client writes each result to
+the catalogue as it arrives: a bad file becomes a catalogued failure and the rest goes on;
+a task lost with a killed worker is re-run by the scheduler (and ``retries`` re-runs a task
+that raised), and since entries are keyed by the input's hash nothing is catalogued twice.
+
+Machine, axis and measurement time come from the path, by a pattern matched against its
+last components: the default ``{machine}/{axis}/{time}`` reads
+``plant/m003/x/2026-03-01.csv`` as machine ``m003``, axis ``x``, measured 2026-03-01 (a file
+name that is not ISO 8601 leaves the time to the file's modification time).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import glob
+import inspect
+import os
+import re
+import time
+import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from driveid.catalog import Catalog, file_sha256, parse_time
+from driveid.errors import ConfigError
+
+__all__ = ["DEFAULT_PATH_PATTERN", "METHODS", "FleetSummary", "identify_many", "parse_path",
+           "identify_file"]
+
+#: How machine, axis and time are read from a record's path (its last components).
+DEFAULT_PATH_PATTERN = "{machine}/{axis}/{time}"
+#: Methods a fleet run can use.
+METHODS = ("logdec", "output-error")
+_FIELDS = ("machine", "axis", "time", "type")
+
+
+@dataclass(frozen=True)
+class FleetSummary:
+    """What a fleet run did.
+
+    Attributes
+    ----------
+    n_found : int
+        Records found.
+    n_skipped : int
+        Already catalogued (by hash), or the same content twice.
+    n_ok, n_failed : int
+        Identified and catalogued; failed and catalogued with their error.
+    n_duplicates : int
+        Results whose key was already in the catalogue when they arrived.
+    elapsed : float
+        Wall time of the identification, without cluster start-up [s].
+    n_workers : int
+        Workers of the cluster.
+    cpu_seconds : float
+        Processor time of all tasks [s]: the per-record cost, independent of machine load.
+    """
+
+    n_found: int
+    n_skipped: int
+    n_ok: int
+    n_failed: int
+    n_duplicates: int
+    elapsed: float
+    n_workers: int
+    cpu_seconds: float = 0.0
+
+    @property
+    def records_per_second(self) -> float:
+        """Throughput [records/s]."""
+        done = self.n_ok + self.n_failed
+        return done / self.elapsed if self.elapsed > 0 else float("nan")
+
+    @property
+    def cpu_seconds_per_record(self) -> float:
+        """Mean processor time of one record's task [s]."""
+        done = self.n_ok + self.n_failed
+        return self.cpu_seconds / done if done else float("nan")
+
+
+def parse_path(path: str | Path, pattern: str = DEFAULT_PATH_PATTERN) -> dict[str, Any]:
+    """Read machine, axis, time and machine type from a record's path.
+
+    Parameters
+    ----------
+    path : str or Path
+        The record file.
+    pattern : str
+        ``/``-separated components matched against the path's last components (the last
+        one without its suffix); placeholders ``{machine}``, ``{axis}``, ``{time}``,
+        ``{type}`` and ``{*}`` (ignored) each match text without ``/``.
+
+    Returns
+    -------
+    dict
+        ``machine``, ``axis``, ``machine_type`` (or None) and ``measured_at`` (naive UTC
+        datetime; from ``{time}`` if ISO 8601, else the file's modification time).
+
+    Raises
+    ------
+    ConfigError
+        If the path does not match, or the pattern lacks ``{machine}`` or ``{axis}``.
+
+    Examples
+    --------
+    >>> parse_path("plant/m003/x/2026-03-01.csv")["machine"]
+    'm003'
+    >>> parse_path("line2/m003/x/2026-03-01.csv", "{type}/{machine}/{axis}/{time}")["machine_type"]
+    'line2'
+    """
+    parts = pattern.strip("/").split("/")
+    if "{machine}" not in pattern or "{axis}" not in pattern:
+        raise ConfigError(f"path pattern must contain {{machine}} and {{axis}}, e.g. "
+                          f"{DEFAULT_PATH_PATTERN}; got {pattern!r}")
+    path = Path(path)
+    components = list(path.parts[:-1]) + [path.stem]
+    if len(components) < len(parts):
+        raise ConfigError(f"path {path} has fewer components than pattern {pattern!r}")
+    found: dict[str, str] = {}
+    for part, text in zip(parts, components[-len(parts):], strict=True):
+        pieces = re.split(r"\{(\w+|\*)\}", part)
+        regex = "^" + "".join(re.escape(x) if k % 2 == 0 else _group(x)
+                              for k, x in enumerate(pieces)) + "$"
+        match = re.match(regex, text)
+        if match is None:
+            raise ConfigError(f"path {path} does not match pattern {pattern!r} at {text!r}; "
+                              "set --machine-from-path, e.g. '{machine}/{axis}/{time}'")
+        found.update({k: v for k, v in match.groupdict().items() if v is not None})
+    measured = None
+    if "time" in found:
+        try:
+            measured = parse_time(found["time"])
+        except ConfigError:
+            measured = None
+    if measured is None:
+        stamp = path.stat().st_mtime if path.exists() else time.time()
+        measured = dt.datetime.fromtimestamp(stamp, dt.UTC).replace(tzinfo=None, microsecond=0)
+    return {"machine": found["machine"], "axis": found["axis"],
+            "machine_type": found.get("type"), "measured_at": measured}
+
+
+def _group(name: str) -> str:
+    if name == "*":
+        return "[^/]*?"
+    if name not in _FIELDS:
+        raise ConfigError(f"unknown placeholder {{{name}}} in path pattern; use "
+                          f"{', '.join('{' + f + '}' for f in _FIELDS)} or {{*}}")
+    return f"(?P<{name}>[^/]+?)"
+
+
+def identify_file(path: str | Path, *, method: str = "logdec",
+                  method_options: Mapping[str, Any] | None = None,
+                  record_options: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Identify one record file; never raise for a bad file (the fleet task).
+
+    Parameters
+    ----------
+    path : str or Path
+        The record.
+    method : {"logdec", "output-error"}
+        Estimator.
+    method_options : mapping, optional
+        Keywords of the estimator (e.g. ``{"mass": 1.0}``).
+    record_options : mapping, optional
+        Keywords of :func:`driveid.io.read_record`.
+
+    Returns
+    -------
+    dict
+        ``{"status": "ok", "result": <driveid-result/1 dict>}`` or
+        ``{"status": "failed", "error": str, "inputs": [...], "method": str}``, both with
+        ``cpu_seconds``, the task's processor time [s] (read, hash, fit).
+    """
+    import driveid
+    from driveid.io import read_record
+
+    path = Path(path)
+    inputs = [{"path": str(path), "sha256": None}]
+    cpu_start = time.process_time()
+    try:
+        inputs[0]["sha256"] = file_sha256(path)
+        estimator = _estimator(method)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            record = read_record(path, **dict(record_options or {}))
+            est = estimator(record, **dict(method_options or {}))
+        inputs[0].update({"rows": record.n, "columns": list(record.columns),
+                          "units": dict(record.units)})
+    except Exception as exc:  # noqa: BLE001 — a fleet task isolates every failure of a file
+        return {"status": "failed", "method": method, "inputs": inputs,
+                "error": f"{type(exc).__name__}: {exc}",
+                "cpu_seconds": time.process_time() - cpu_start}
+    messages = list(est.warnings) + [str(w.message) for w in caught]
+    params = {n: {"value": p.value, "stderr": p.stderr, "unit": p.unit,
+                  "fixed": bool(getattr(p, "fixed", False))} for n, p in est.params.items()}
+    cov = None
+    if est.covariance is not None:
+        cov = {"names": list(est.covariance["names"]),
+               "matrix": [list(map(float, row)) for row in est.covariance["matrix"]]}
+    from driveid._json import to_jsonable
+
+    result = {"driveid": driveid.__version__, "schema": "driveid-result/1",
+              "command": ["driveid.fleet.identify_many", method], "inputs": inputs,
+              "method": est.method, "parameters": params, "covariance": cov,
+              "diagnostics": dict(est.diagnostics), "warnings": messages}
+    return {"status": "ok", "result": to_jsonable(result),
+            "cpu_seconds": time.process_time() - cpu_start}
+
+
+def _estimator(method: str):
+    if method == "logdec":
+        from driveid.identify.logdec import estimate_log_decrement
+
+        return estimate_log_decrement
+    if method == "output-error":
+        try:
+            from driveid.identify.output_error import estimate_output_error
+        except ImportError:
+            raise ConfigError("method 'output-error' is not available in this driveid; use "
+                              "--method logdec") from None
+        return estimate_output_error
+    raise ConfigError(f"method must be one of {METHODS}; got {method!r}")
+
+
+def _expand(paths: str | Path | Iterable[str | Path]) -> list[Path]:
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    found: list[Path] = []
+    for item in paths:
+        text = str(item)
+        if any(c in text for c in "*?["):
+            found.extend(Path(p) for p in sorted(glob.glob(text, recursive=True))
+                         if os.path.isfile(p))
+        else:
+            if not Path(text).is_file():
+                raise FileNotFoundError(f"no such record file: {text}")
+            found.append(Path(text))
+    return list(dict.fromkeys(found))
+
+
+def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "logdec",
+                  method_options: Mapping[str, Any] | None = None,
+                  record_options: Mapping[str, Any] | Any | None = None,
+                  catalog: str | Path | Catalog | None = None, client: Any = None,
+                  scheduler: str | None = None, n_workers: int = 2,
+                  path_pattern: str = DEFAULT_PATH_PATTERN, machine_type: str | None = None,
+                  retries: int = 2, progress: bool = True) -> FleetSummary:
+    """Identify every record of a fleet on Dask and catalogue the results.
+
+    Parameters
+    ----------
+    paths : str or Path or sequence
+        Record files or glob patterns (``'traces/**/*.csv'``, recursive).
+    method : {"logdec", "output-error"}
+        Estimator; ``output-error`` needs :mod:`driveid.identify.output_error`.
+    method_options : mapping, optional
+        Estimator keywords, e.g. ``{"mass": 1.0}`` [kg or kg·m²]; checked before submitting.
+    record_options : mapping or RecordOptions, optional
+        Keywords of :func:`driveid.io.read_record` (or the CLI's ``RecordOptions``).
+    catalog : str or Path or Catalog, optional
+        Catalogue (file or URL); default ``./driveid-catalog.sqlite``.
+    client : distributed.Client, optional
+        An existing client; its cluster is used and left running.
+    scheduler : str, optional
+        Address of an existing scheduler, ``tcp://host:port`` (ignored with ``client``).
+    n_workers : int
+        Workers of the local cluster started when neither ``client`` nor ``scheduler`` is
+        given (single-threaded processes on 127.0.0.1).
+    path_pattern : str
+        How machine, axis and time are read from a path (:func:`parse_path`).
+    machine_type : str, optional
+        Machine type of every record (a ``{type}`` in the pattern wins).
+    retries : int
+        Re-runs of a task that raised (workers lost are re-run by the scheduler).
+    progress : bool
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    FleetSummary
+        Counts and throughput.
+
+    Raises
+    ------
+    ConfigError
+        No file found, an unknown method or estimator keyword, or a path that does not
+        match the pattern.
+    FileNotFoundError
+        A named file (not a pattern) that does not exist.
+    """
+    files = _expand(paths)
+    if not files:
+        raise ConfigError(f"no record file matches {paths!r}; check the pattern (quote it "
+                          "in the shell so that ** reaches driveid)")
+    estimator = _estimator(method)
+    options = dict(method_options or {})
+    try:
+        inspect.signature(estimator).bind(None, **options)
+    except TypeError as exc:
+        raise ConfigError(f"method {method!r} does not take {sorted(options)}: {exc}") from None
+    if record_options is not None and hasattr(record_options, "read_kwargs"):
+        record_options = record_options.read_kwargs()
+    record_kwargs = dict(record_options or {})
+    located = {f: parse_path(f, path_pattern) for f in files}
+    owns_catalog = not isinstance(catalog, Catalog)
+    cat = Catalog(catalog) if owns_catalog else catalog
+    owned: list[Any] = []
+    try:
+        hashes = {f: file_sha256(f) for f in files}
+        known = cat.known_hashes(hashes.values())
+        todo: dict[str, Path] = {}
+        for f in files:
+            if hashes[f] not in known and hashes[f] not in todo:
+                todo[hashes[f]] = f
+        n_skipped = len(files) - len(todo)
+        counts: dict[str, Any] = {"ok": 0, "failed": 0, "duplicates": 0, "cpu": 0.0}
+        workers, elapsed = 0, 0.0
+        if todo:
+            if client is None:
+                client = _start_client(scheduler, n_workers, owned)
+            workers = len(client.scheduler_info().get("workers", {}))
+            client.run(_estimator, method)  # import (and compile) before the clock starts
+            start = time.perf_counter()
+            counts = _run(client, todo, located, cat, method, options, record_kwargs,
+                          machine_type, retries, progress)
+            elapsed = time.perf_counter() - start
+    finally:
+        for thing in reversed(owned):
+            thing.close()
+        if owns_catalog:
+            cat.close()
+    return FleetSummary(n_found=len(files), n_skipped=n_skipped, n_ok=counts["ok"],
+                        n_failed=counts["failed"], n_duplicates=counts["duplicates"],
+                        elapsed=elapsed, n_workers=workers, cpu_seconds=counts["cpu"])
+
+
+def _start_client(scheduler: str | None, n_workers: int, owned: list[Any]) -> Any:
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        client = Client(scheduler)
+        owned.append(client)
+        return client
+    if n_workers < 1:
+        raise ConfigError(f"n_workers must be >= 1; got {n_workers}")
+    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                           host="127.0.0.1", dashboard_address="127.0.0.1:0")
+    owned.append(cluster)
+    client = Client(cluster)
+    owned.append(client)
+    return client
+
+
+def _run(client, todo, located, cat, method, options, record_kwargs, machine_type, retries,
+         progress) -> dict[str, int]:
+    from distributed import as_completed
+    from tqdm import tqdm
+
+    futures = {}
+    for sha, path in todo.items():
+        future = client.submit(identify_file, str(path), method=method, method_options=options,
+                               record_options=record_kwargs, key=f"driveid-identify-{sha}",
+                               retries=retries, pure=False)
+        futures[future] = path
+    import driveid
+
+    counts: dict[str, Any] = {"ok": 0, "failed": 0, "duplicates": 0, "cpu": 0.0}
+    pending: list[dict[str, Any]] = []
+    last_flush = time.monotonic()
+
+    def flush() -> None:
+        nonlocal last_flush
+        if pending:
+            for added in cat.add_many(pending):
+                counts["duplicates"] += 0 if added.created else 1
+            pending.clear()
+        last_flush = time.monotonic()
+
+    with tqdm(total=len(futures), disable=not progress, unit="record") as bar:
+        for future in as_completed(list(futures)):
+            path = futures.pop(future)
+            where = located[path]
+            try:
+                outcome = future.result()
+            except Exception as exc:  # noqa: BLE001 — a task lost for good (KilledWorker ...)
+                outcome = {"status": "failed", "method": method,
+                           "inputs": [{"path": str(path), "sha256": file_sha256(path)}],
+                           "error": f"{type(exc).__name__}: {exc}"}
+            future.release()
+            place = {"machine": where["machine"], "axis": where["axis"],
+                     "measured_at": where["measured_at"],
+                     "machine_type": where["machine_type"] or machine_type}
+            if outcome["status"] == "ok":
+                pending.append({"result": outcome["result"], **place})
+            else:
+                pending.append({"failure": {
+                    "inputs": outcome["inputs"], "method": outcome["method"],
+                    "error": outcome["error"], "driveid_version": driveid.__version__,
+                    "command": ["driveid.fleet.identify_many", method], **place}})
+            counts[outcome["status"]] += 1
+            counts["cpu"] += outcome.get("cpu_seconds", 0.0)
+            # one transaction per batch: a commit per record would cost as much as a fit
+            if len(pending) >= 50 or time.monotonic() - last_flush > 2.0:
+                flush()
+            bar.update(1)
+    flush()
+    return counts

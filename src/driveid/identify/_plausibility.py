@@ -1,0 +1,169 @@
+"""Plausibility guards applied to every estimate before a user sees it.
+
+A least-squares fit always returns numbers; these checks say when the numbers cannot be
+physical and name the likely cause and what to try:
+
+- a mass or inertia that is zero or negative (``J``, ``M``, ``M_plus`` ...), or a stiffness
+  ``K`` negative by more than two standard errors: the model lacks a load that the data
+  carry (gravity on a vertical axis, a spring, backlash impacts, see the thesis's ch. 3), or
+  the test did not excite inertia enough;
+- viscous or Coulomb friction negative by more than two standard errors (``c_mean``,
+  ``fk_mean``, ``fs_mean``, ``Fv``, ``Fc`` and their ``_plus``/``_minus``): motion in one
+  direction only (mean and asymmetry are then not separable, thesis Eq. 2.155), an
+  unmodelled load, or an uncompensated loop delay (PHO, thesis Sec. 5.3);
+- a standard error larger than the value of a quantity that must be positive: too little
+  excitation or too few data for that parameter.
+
+Signed asymmetries (``c_delta``, ``fk_delta``, ``offset`` ...) may legitimately be zero
+within their error and are not checked for it. Given values (``Parameter.fixed``) are
+never checked.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable
+from typing import Any
+
+from driveid.identify.estimate import Estimate
+
+__all__ = ["check_plausibility", "plausibility_checked", "check_refit_stability"]
+
+_INERTIA = ("J", "M", "M_plus", "M_minus")
+_STIFFNESS = ("K",)
+_FRICTION = ("c_mean", "fk_mean", "fs_mean", "Fv", "Fc", "Fv_plus", "Fv_minus", "Fc_plus",
+             "Fc_minus", "c_plus", "c_minus", "fk_plus", "fk_minus")
+# K is not here: a free axis has K = 0, and an estimate within its error of 0 is right
+_POSITIVE = (*_INERTIA, *_FRICTION, "omega0", "omega_d", "zeta", "zeta_plus", "zeta_minus",
+             "sigma")
+_SIGNIFICANT = 2.0
+
+_INERTIA_HINT = (
+    "likely an unmodelled load (gravity on a vertical axis, a spring), backlash impacts, or "
+    "too little excitation of inertia (accelerations small next to friction); try a larger or "
+    "faster excitation, a window without impacts (--t-start/--t-end), a model with an offset, "
+    "or give the value (--mass)")
+_STIFFNESS_HINT = (
+    "likely an unmodelled load (gravity, a preload), backlash, or a record too short to "
+    "resolve the spring; try a longer window, both directions of motion, or give the value "
+    "(--stiffness)")
+_FRICTION_HINT = (
+    "likely motion in one direction only (mean and asymmetry are then not separable), an "
+    "unmodelled load such as gravity, or an uncompensated loop delay; try runs in both "
+    "directions, a model with an offset, or compensating the delay")
+_ERROR_HINT = (
+    "too little excitation or too few data to identify it; try a longer record, a larger "
+    "amplitude, more runs, or give the value if it is known")
+
+
+def check_plausibility(est: Estimate) -> Estimate:
+    """Return a copy of ``est`` with a warning for every physically implausible parameter.
+
+    Parameters
+    ----------
+    est : Estimate
+        Any estimate; parameters are looked up by the names of DESIGN.md.
+
+    Returns
+    -------
+    Estimate
+        The same estimate, its ``warnings`` extended (each message once; running the check
+        twice adds nothing).
+
+    Examples
+    --------
+    >>> from driveid.identify.estimate import Parameter
+    >>> est = Estimate("demo", {"M": Parameter(-0.4, 0.1, "kg")})
+    >>> check_plausibility(est).warnings[0][:33]
+    'M = -0.4 kg is not positive: like'
+    """
+    messages = []
+    for name, par in est.params.items():
+        if par.fixed or not math.isfinite(par.value):
+            continue
+        value = f"{name} = {par.value:.4g} {par.unit}".rstrip()
+        # below zero by more than 2 standard errors: a true value >= 0 gives that in < 2.3 %
+        error = par.stderr if math.isfinite(par.stderr) and par.stderr > 0 else 0.0
+        negative = par.value < -_SIGNIFICANT * error
+        if name in _INERTIA and par.value <= 0:
+            messages.append(f"{value} is not positive: {_INERTIA_HINT}")
+        elif name in _STIFFNESS and negative:
+            messages.append(f"{value} is negative: {_STIFFNESS_HINT}")
+        elif name in _FRICTION and negative:
+            messages.append(f"{value} is negative friction: {_FRICTION_HINT}")
+        elif (name in _POSITIVE and error > abs(par.value) and par.value != 0):
+            messages.append(f"{value} has a standard error {par.stderr:.3g} larger than its "
+                            f"value: {_ERROR_HINT}")
+    return est.with_warnings(*messages)
+
+
+def plausibility_checked(func: Callable[..., Estimate]) -> Callable[..., Estimate]:
+    """Decorate an estimator so that its estimate passes :func:`check_plausibility`.
+
+    Parameters
+    ----------
+    func : callable
+        An ``estimate_<method>(...) -> Estimate`` function.
+
+    Returns
+    -------
+    callable
+        The same function (name, docstring, signature kept) whose result carries the
+        plausibility warnings.
+    """
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Estimate:
+        return check_plausibility(func(*args, **kwargs))
+
+    return wrapper
+
+
+#: Relative change below which two fits of the same data are the same to solver accuracy.
+_SOLVER_RESOLUTION = 1e-6
+
+
+def check_refit_stability(est: Estimate, refit: Estimate, *, change: str,
+                          n_sigma: float = 3.0) -> Estimate:
+    """Warn when a refit with changed settings moves a parameter beyond its standard errors.
+
+    Parameters
+    ----------
+    est : Estimate
+        The estimate as reported.
+    refit : Estimate
+        The same method on changed settings: a shorter window, another filter cut-off.
+    change : str
+        What was changed, named in the warning (e.g. ``"the last 20 % of the window
+        dropped"``).
+    n_sigma : float
+        Threshold in standard errors [-]; the larger of the two estimates' errors is used,
+        so a model that fits moves by far less (the refit uses a subset of the same data).
+
+    Returns
+    -------
+    Estimate
+        ``est`` with one warning per parameter that moved by more than ``n_sigma`` standard
+        errors (a sign that the model misses something the data carry).
+    """
+    messages = []
+    for name, par in est.params.items():
+        other = refit.params.get(name)
+        if other is None or par.fixed or other.fixed:
+            continue
+        error = max(par.stderr, other.stderr)
+        if not (math.isfinite(error) and error > 0 and math.isfinite(other.value)):
+            continue
+        move = abs(other.value - par.value)
+        # below ~1e-6 of the value a move is the solvers' own tolerance, not the data: on a
+        # noise-free record the standard errors shrink to rounding level and any solver
+        # difference would otherwise count as tens of "standard errors"
+        if move > n_sigma * error and move > _SOLVER_RESOLUTION * max(abs(par.value), error):
+            messages.append(
+                f"{name} moves from {par.value:.6g} to {other.value:.6g} {par.unit} "
+                f"({abs(other.value - par.value) / error:.1f} standard errors) with {change}: "
+                "the model misses something the data carry (amplitude-dependent friction, "
+                "backlash, an unmodelled load) or the record ends in noise; try another "
+                "window (--t-start/--t-end) or a richer model")
+    return est.with_warnings(*messages)

@@ -1,0 +1,232 @@
+r"""Cramér–Rao bounds of free-decay parameters, and experiment planning from them.
+
+For a record ``y_i = x(t_i; q) + n_i`` with white Gaussian noise of standard deviation
+``σ_n``, the Fisher information is ``F = JᵀJ/σ_n²`` with ``J = ∂x/∂q`` the Jacobian of the
+exact piecewise free response (the same one :func:`driveid.identify.output_error.
+estimate_output_error` fits; de Marchi 1998, Eqs. 2.139-2.143, 2.156, 2.168). Any unbiased
+estimator's covariance is at least ``F⁻¹``; the physical parameters follow by the delta
+method (thesis 2.145, 2.150). Nuisance unknowns (release position and time, and a drift
+when asked) are part of ``q`` and widen the bound, as they do the fit.
+
+The body is assumed to stop where the kinetic friction first allows it (static = kinetic
+friction) unless ``n_half`` is given. Encoder quantisation with step ``q`` behaves like
+noise of standard deviation ``q/√12`` only where the signal moves many steps per sample;
+treat the bound as a guide there.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from driveid.errors import IdentificationError, ParameterError
+from driveid.identify._free_response import GLOBAL_NAMES, kinetic_stop_count, response
+from driveid.identify.output_error import physical_parameters
+
+__all__ = ["free_decay_crlb", "required_duration"]
+
+_PHYSICAL = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta")
+
+
+def _get(params: Any, name: str) -> float:
+    if isinstance(params, Mapping):
+        return float(params.get(name, 0.0))
+    return float(getattr(params, name, 0.0))
+
+
+def _base(params: Any) -> np.ndarray:
+    J, K = _get(params, "J"), _get(params, "K")
+    if not (J > 0 and K > 0):
+        raise ParameterError(f"the bound needs J > 0 and K > 0; got J={J!r}, K={K!r}")
+    omega0 = math.sqrt(K / J)
+    crit = 2.0 * math.sqrt(J * K)
+    cm, cd = _get(params, "c_mean"), _get(params, "c_delta")
+    zp, zm = (cm + cd) / crit, (cm - cd) / crit
+    if not (abs(zp) < 1 and abs(zm) < 1):
+        raise ParameterError(f"the free-decay model is underdamped: need |ζ±| < 1, got "
+                             f"zeta_plus={zp:.4g}, zeta_minus={zm:.4g}")
+    return np.array([omega0, zp, zm, _get(params, "fk_mean") / K, _get(params, "fk_delta") / K])
+
+
+def free_decay_crlb(
+    params: Any,
+    *,
+    fs: float,
+    duration: float,
+    x0: float,
+    noise_std: float,
+    known: str = "J",
+    n_half: int | None = None,
+    drift: bool = False,
+) -> dict[str, float]:
+    """Cramér–Rao standard deviations of the free-decay parameters for one record design.
+
+    Parameters
+    ----------
+    params : mapping or object
+        The system: ``J`` [kg or kg·m²], ``K`` [N/m or N·m/rad], ``c_mean``, ``c_delta``
+        [N·s/m or N·m·s/rad], ``fk_mean``, ``fk_delta`` [N or N·m] (attributes, e.g. an
+        ``OscillatorParams``, or keys; missing ones are 0).
+    fs : float
+        Sampling rate [Hz]; > 0.
+    duration : float
+        Record length from the release [s]; > 0.
+    x0 : float
+        Release position, at rest [m or rad].
+    noise_std : float
+        Standard deviation of white position noise [m or rad]; > 0.
+    known : {"J", "K"}
+        The parameter given to the estimator (the other is estimated).
+    n_half : int, optional
+        Half cycles before the stop [-]; default: where kinetic friction stops the body.
+    drift : bool
+        Include a linear drift as a nuisance unknown.
+
+    Returns
+    -------
+    dict
+        Bound standard deviation per parameter, in its unit: ``omega0``, ``zeta_plus``,
+        ``zeta_minus``, ``theta_k_mean``, ``theta_k_delta``, the unknown of ``J``/``K``,
+        ``c_mean``, ``c_delta``, ``fk_mean``, ``fk_delta``.
+
+    Raises
+    ------
+    ParameterError
+        Non-positive ``fs``, ``duration`` or ``noise_std``, a bad ``known``, or a system
+        that is not an underdamped oscillator.
+
+    Examples
+    --------
+    >>> p = {"J": 1.0, "K": 16.0, "c_mean": 0.3, "c_delta": 0.1, "fk_mean": 0.07,
+    ...      "fk_delta": 0.03}
+    >>> sd = free_decay_crlb(p, fs=1000, duration=30, x0=10, noise_std=0.01)
+    >>> 1e-4 < sd["fk_mean"] / 0.07 < 1e-2
+    True
+    """
+    for name, value in (("fs", fs), ("duration", duration), ("noise_std", noise_std)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ParameterError(f"{name} must be a positive number; got {value!r}")
+    if known not in ("J", "K"):
+        raise ParameterError(f"known must be 'J' or 'K' (the given parameter); got {known!r}")
+    base = _base(params)
+    t = np.arange(int(math.floor(duration * fs + 1e-9)) + 1) / fs
+    if n_half is None:
+        n_half, _ = kinetic_stop_count(base, float(x0), 0.0, float(t[-1]))
+    _, jac, _ = response(t, base, float(x0), 0.0, max(int(n_half), 1))
+    if drift:
+        jac = np.column_stack([jac, t])
+    fisher = jac.T @ jac / noise_std**2
+    try:
+        cov = np.linalg.inv(fisher)
+    except np.linalg.LinAlgError:
+        raise IdentificationError(
+            "the Fisher information is singular: the record cannot separate the parameters "
+            "(too short, or no motion in one direction)") from None
+    mass = _get(params, "J") if known == "J" else None
+    stiffness = _get(params, "K") if known == "K" else None
+    free = [n for n in _PHYSICAL if n != known]
+    G = np.empty((len(free), 5))
+    for i in range(5):
+        h = 1e-6 * max(abs(base[i]), 1e-4)
+        up, down = base.copy(), base.copy()
+        up[i] += h
+        down[i] -= h
+        a, b = physical_parameters(up, mass, stiffness), physical_parameters(down, mass, stiffness)
+        G[:, i] = [(a[n] - b[n]) / (2 * h) for n in free]
+    cov_phys = G @ cov[:5, :5] @ G.T
+    out = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(GLOBAL_NAMES)}
+    out.update({n: float(math.sqrt(max(cov_phys[i, i], 0.0))) for i, n in enumerate(free)})
+    return out
+
+
+def required_duration(
+    params: Any,
+    *,
+    fs: float,
+    x0: float,
+    noise_std: float,
+    parameter: str = "fk_mean",
+    relative: float = 0.01,
+    known: str = "J",
+    max_duration: float = 3600.0,
+) -> float:
+    """Shortest record whose Cramér–Rao bound gives ``parameter`` within ``relative``.
+
+    Answers "how long must I record to get f̄k within 1 %?" (one standard deviation).
+
+    Parameters
+    ----------
+    params : mapping or object
+        The (expected) system, as for :func:`free_decay_crlb`.
+    fs : float
+        Sampling rate [Hz].
+    x0 : float
+        Release position [m or rad].
+    noise_std : float
+        Position noise standard deviation [m or rad].
+    parameter : str
+        Name of the parameter (a key of :func:`free_decay_crlb`'s result).
+    relative : float
+        Target bound standard deviation relative to the parameter's value [-]; > 0.
+    known : {"J", "K"}
+        The given parameter.
+    max_duration : float
+        Longest duration considered [s].
+
+    Returns
+    -------
+    float
+        Duration from the release [s], to 1 % of itself.
+
+    Raises
+    ------
+    ParameterError
+        A parameter whose value is 0 (a relative target is meaningless), or a bad name.
+    IdentificationError
+        If even ``max_duration`` does not reach the target (the motion stops first:
+        record from a larger ``x0`` or with less noise).
+
+    Examples
+    --------
+    >>> p = {"J": 1.0, "K": 16.0, "c_mean": 0.3, "c_delta": 0.1, "fk_mean": 0.07,
+    ...      "fk_delta": 0.03}
+    >>> d = required_duration(p, fs=100, x0=1.0, noise_std=0.001, relative=0.01)
+    >>> round(d, 1)  # seconds of decay for f̄k within 1 % (one sd) at 1 mrad noise
+    8.5
+    """
+    if not relative > 0:
+        raise ParameterError(f"relative must be > 0; got {relative!r}")
+    base = _base(params)
+    J, K = _get(params, "J"), _get(params, "K")
+    values = dict(zip(GLOBAL_NAMES, base, strict=True))
+    values.update(physical_parameters(base, J if known == "J" else None,
+                                      K if known == "K" else None))
+    if parameter not in values or parameter == known:
+        raise ParameterError(f"parameter must be an estimated one of {sorted(values)} other "
+                             f"than the known {known!r}; got {parameter!r}")
+    target = relative * abs(values[parameter])
+    if target == 0:
+        raise ParameterError(f"{parameter} is 0: a relative precision is meaningless; "
+                             "use free_decay_crlb for its absolute bound")
+
+    def bound(d):
+        return free_decay_crlb(params, fs=fs, duration=d, x0=x0, noise_std=noise_std,
+                               known=known)[parameter]
+
+    lo = hi = 2.0 * 2 * math.pi / base[0]  # two periods
+    while bound(hi) > target:
+        lo, hi = hi, 2 * hi
+        if hi > max_duration:
+            raise IdentificationError(
+                f"{parameter} does not reach {relative:.3g} relative precision within "
+                f"{max_duration} s (the motion stops first); record from a larger x0, "
+                "with less noise or a faster sampling rate")
+    if lo == hi:
+        return float(hi)
+    while hi - lo > 0.01 * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if bound(mid) <= target else (mid, hi)
+    return float(hi)

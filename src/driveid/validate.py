@@ -1,0 +1,310 @@
+r"""Model validation: simulate an identified model on a record and judge the residuals.
+
+Like MATLAB's ``compare``/``resid``: :func:`compare` simulates the identified model with the
+record's input (here a free decay: no input) and initial state, and reports
+
+* the fit percentage (normalised root-mean-square error)
+  ``fit = 100·(1 - ‖y - ŷ‖/‖y - mean(y)‖)`` [%];
+* the residual rms [m or rad] (for a held-out record: the prediction error);
+* the residual autocorrelation ``r_k`` for lags 1..m and its whiteness: the Ljung–Box
+  statistic ``Q = n(n+2) Σ r_k²/(n-k)`` against χ²(m), and the fraction of ``r_k`` outside
+  the ``±1.96/√n`` band.
+
+Supported estimates: those of a free decay with ``omega0``, ``zeta_plus``, ``zeta_minus``,
+``theta_k_mean``, ``theta_k_delta`` (``logdec-lsq``, ``logdec-thesis-*``, ``output-error``).
+The model is simulated by :func:`driveid.sim.simulate_free_decay` (de Marchi 1998,
+Eqs. 2.139-2.143, 2.156; static friction taken equal to kinetic, since a free decay does
+not identify it). The initial state is the estimate's own release for a record it was
+fitted to (``index=``), else (held-out records) the release position and time fitted with
+the model parameters fixed.
+
+Residuals of an encoder record are rounding errors; they are close to white while the
+signal moves many counts per sample and correlated on slow stretches. The whiteness test
+uses every sample; read it with the fit percentage.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import chi2
+
+from driveid.errors import IdentificationError
+from driveid.identify._free_response import kinetic_stop_count, response
+from driveid.identify.estimate import Estimate
+from driveid.io.record import Record
+from driveid.sim import OscillatorParams, simulate_free_decay
+
+__all__ = ["Comparison", "compare", "simulate", "whiteness"]
+
+_FREE_DECAY = ("omega0", "zeta_plus", "zeta_minus", "theta_k_mean", "theta_k_delta")
+#: Ljung–Box p-value below which residuals are called not white [-].
+WHITE_P = 0.01
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A record against the simulated response of an identified model.
+
+    Attributes
+    ----------
+    t, y, y_hat : ndarray
+        Times [s], measured and simulated positions [m or rad] of the compared samples.
+    fit : float
+        ``100·(1 - ‖y - ŷ‖/‖y - mean y‖)`` [%]; 100 is perfect.
+    residual_rms : float
+        Root-mean-square of ``y - ŷ`` [m or rad].
+    whiteness : dict
+        ``test`` ("ljung-box"), ``lags``, ``statistic``, ``p_value``, ``white`` (p >= 0.01),
+        ``band_fraction`` (share of lags outside ±1.96/√n), ``acf`` (lags 1..m).
+    held_out : bool
+        True when the initial state was fitted here (the record was not in the estimate).
+    warnings : tuple of str
+        Reasons to distrust the model on this record.
+    unit : str
+        Unit of ``y`` (``"rad"`` or ``"m"``), shown on the figure's axes.
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    y_hat: np.ndarray
+    fit: float
+    residual_rms: float
+    whiteness: Mapping[str, Any]
+    held_out: bool
+    warnings: tuple[str, ...] = field(default=())
+    unit: str = "rad"
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready summary (no time series): fit [%], residual_rms, whiteness."""
+        w = dict(self.whiteness)
+        w["acf"] = [float(a) for a in w["acf"]]
+        return {"fit": self.fit, "residual_rms": self.residual_rms, "whiteness": w,
+                "held_out": self.held_out, "n": int(self.t.size),
+                "warnings": list(self.warnings)}
+
+    def plot(self, ax: Any = None) -> Any:
+        """Overlay measured and simulated response, residuals and their autocorrelation.
+
+        Parameters
+        ----------
+        ax : sequence of 3 matplotlib Axes, optional
+            Where to draw; a new figure when omitted.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure.
+        """
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            fig, ax = plt.subplots(3, 1, figsize=(8, 7), constrained_layout=True)
+        else:
+            fig = ax[0].figure
+        ax[0].plot(self.t, self.y, "k.", ms=2, label="measured")
+        ax[0].plot(self.t, self.y_hat, "C1-", lw=1, label=f"model (fit {self.fit:.2f} %)")
+        ax[0].set_ylabel(f"position x [{self.unit}]")
+        ax[0].legend(loc="upper right")
+        ax[1].plot(self.t, self.y - self.y_hat, "C0-", lw=0.5)
+        ax[1].set_ylabel(f"residual [{self.unit}]")
+        ax[1].set_xlabel("t [s]")
+        acf = np.asarray(self.whiteness["acf"])
+        band = 1.96 / math.sqrt(max(self.t.size, 1))
+        ax[2].bar(np.arange(1, acf.size + 1), acf, color="C0")
+        ax[2].axhline(band, color="k", ls="--", lw=0.8)
+        ax[2].axhline(-band, color="k", ls="--", lw=0.8)
+        ax[2].set_xlabel("lag [samples]")
+        ax[2].set_ylabel("residual autocorrelation [-]")
+        ax[2].set_title(f"Ljung–Box p = {self.whiteness['p_value']:.3g}")
+        return fig
+
+
+def whiteness(residual: np.ndarray, lags: int = 20) -> dict[str, Any]:
+    """Ljung–Box whiteness test and ±1.96/√n band count of a residual sequence.
+
+    Parameters
+    ----------
+    residual : ndarray, shape (n,)
+        Residuals [any unit], in time order.
+    lags : int
+        Number of autocorrelation lags m [-]; capped at n/5.
+
+    Returns
+    -------
+    dict
+        ``test``, ``lags``, ``statistic`` (Q), ``p_value`` (χ²(m) upper tail), ``white``
+        (p >= 0.01), ``band_fraction``, ``acf`` (ndarray, lags 1..m).
+
+    Examples
+    --------
+    >>> w = whiteness(np.random.default_rng(0).normal(size=2000))
+    >>> w["white"]
+    True
+    """
+    e = np.asarray(residual, float) - float(np.mean(residual))
+    n = e.size
+    m = int(max(1, min(lags, n // 5)))
+    denom = float(e @ e)
+    if denom == 0.0:
+        acf = np.zeros(m)
+    else:
+        acf = np.array([float(e[k:] @ e[:-k]) / denom for k in range(1, m + 1)])
+    q = float(n * (n + 2) * np.sum(acf**2 / (n - np.arange(1, m + 1))))
+    p = float(chi2.sf(q, m))
+    band = 1.96 / math.sqrt(n)
+    return {"test": "ljung-box", "lags": m, "statistic": q, "p_value": p,
+            "white": bool(p >= WHITE_P), "band_fraction": float(np.mean(np.abs(acf) > band)),
+            "acf": acf}
+
+
+def _base(estimate: Estimate) -> list[float]:
+    missing = [n for n in _FREE_DECAY if n not in estimate]
+    if missing:
+        raise IdentificationError(
+            f"validation of a {estimate.method!r} estimate needs the free-decay parameters "
+            f"{list(_FREE_DECAY)}; it lacks {missing}. Supported: logdec and output-error "
+            "estimates")
+    return [estimate.value(n) for n in _FREE_DECAY]
+
+
+def _params(base: list[float]) -> OscillatorParams:
+    """Oscillator with J = 1 and the same ω0, ζ± and θk (the position response is equal)."""
+    omega0, zp, zm, tkm, tkd = base
+    K = omega0**2
+    return OscillatorParams(J=1.0, K=K, c_mean=omega0 * (zp + zm), c_delta=omega0 * (zp - zm),
+                            fk_mean=max(K * tkm, 0.0), fk_delta=K * tkd)
+
+
+def _fit_release(t, y, base):
+    """Release position and time of a held-out record with the model parameters fixed."""
+    from driveid.signal.peaks import find_oscillation_peaks
+
+    pk = find_oscillation_peaks(Record(t=t, x=y, max_jitter=None).resampled_uniform(
+        purpose="the start values of the release"))
+    x0, t0 = float(pk.x[0]), float(pk.t[0])
+
+    def residual(q):
+        n, _ = kinetic_stop_count(base, q[0], q[1], float(t[-1]))
+        return response(t, base, q[0], q[1], max(n, 1), jacobian=False)[0] - y
+
+    sol = least_squares(residual, [x0, t0], x_scale=[max(abs(x0), 1e-9), 1.0 / base[0]])
+    return float(sol.x[0]), float(sol.x[1])
+
+
+def simulate(record: Record, estimate: Estimate, *, index: int | None = None
+             ) -> tuple[np.ndarray, bool]:
+    """Return the identified model's simulated position at the record's sample times.
+
+    Parameters
+    ----------
+    record : Record
+        The measured record (its times and, for a held-out record, its initial state).
+    estimate : Estimate
+        A free-decay estimate (see module docstring).
+    index : int, optional
+        Which of the estimate's records this is (uses its fitted release, drift and
+        ``x_ref``); None: a held-out record, whose release is fitted here.
+
+    Returns
+    -------
+    y_hat : ndarray, shape (n,)
+        Simulated position [m or rad].
+    held_out : bool
+        True when the release was fitted here.
+
+    Raises
+    ------
+    IdentificationError
+        An estimate without free-decay parameters, or ``index`` out of range.
+    """
+    base = _base(estimate)
+    t = np.asarray(record.t, float)
+    x_ref = float(estimate.data_used.get("x_ref", 0.0) or 0.0)
+    releases = estimate.data_used.get("release_x")
+    drift = 0.0
+    if index is not None and releases is not None:
+        if not 0 <= index < len(releases):
+            raise IdentificationError(
+                f"index {index} is out of range: the estimate was fitted to {len(releases)} "
+                "records")
+        x_r = float(releases[index]) - x_ref
+        t_r = float(estimate.data_used["release_t"][index])
+        drift = float((estimate.data_used.get("drift") or [0.0] * len(releases))[index])
+        held_out = False
+    else:
+        x_r, t_r = _fit_release(t, np.asarray(record.x, float) - x_ref, base)
+        held_out = True
+    params = _params(base)
+    y_hat = np.full(t.size, x_r)
+    after = t >= t_r
+    if np.any(after):
+        local = t[after] - t_r
+        sim = simulate_free_decay(params, x0=x_r, duration=float(local[-1]) + 1e-9,
+                                  t=local)
+        y_hat[after] = sim.record.x
+    return y_hat + x_ref + drift * (t - t[0]), held_out
+
+
+def compare(record: Record, estimate: Estimate, *, index: int | None = None,
+            lags: int = 20) -> Comparison:
+    """Compare a record with the simulated response of an identified model.
+
+    Parameters
+    ----------
+    record : Record
+        Measured free decay.
+    estimate : Estimate
+        Free-decay estimate (``logdec-lsq``, ``output-error`` ...).
+    index : int, optional
+        Position of ``record`` among the estimate's records (its fitted initial state is
+        used); None for a held-out record.
+    lags : int
+        Autocorrelation lags of the whiteness test [-].
+
+    Returns
+    -------
+    Comparison
+        Fit [%], residual rms, whiteness, the series and warnings.
+
+    Raises
+    ------
+    IdentificationError
+        An estimate that does not describe a free decay.
+
+    Examples
+    --------
+    >>> from driveid.identify.output_error import estimate_output_error
+    >>> from driveid.sim import measure
+    >>> p = OscillatorParams(J=1.0, K=16.0, c_mean=0.3, c_delta=0.1, fk_mean=0.07,
+    ...                      fk_delta=0.03)
+    >>> rec = measure(simulate_free_decay(p, x0=1.0, duration=20, fs=100).record,
+    ...               noise_std=0.002, rng=0)
+    >>> c = compare(rec, estimate_output_error(rec, mass=1.0), index=0)
+    >>> c.fit > 99, c.whiteness["white"]
+    (True, True)
+    """
+    y_hat, held_out = simulate(record, estimate, index=index)
+    y = np.asarray(record.x, float)
+    resid = y - y_hat
+    spread = float(np.linalg.norm(y - np.mean(y)))
+    fit = 100.0 * (1.0 - float(np.linalg.norm(resid)) / spread) if spread > 0 else math.nan
+    white = whiteness(resid, lags)
+    warnings = []
+    if not white["white"]:
+        warnings.append(
+            f"residuals are not white (Ljung–Box p = {white['p_value']:.2g} over "
+            f"{white['lags']} lags, {100 * white['band_fraction']:.0f} % of lags outside "
+            "±1.96/√n): the model misses an effect of this record (presliding, a drift, "
+            "a second mode, forcing) or the noise is coloured (encoder rounding)")
+    if math.isfinite(fit) and fit < 90.0:
+        warnings.append(f"fit is only {fit:.1f} %: the model does not describe this record")
+    return Comparison(t=np.asarray(record.t, float), y=y, y_hat=y_hat, fit=fit,
+                      residual_rms=float(math.sqrt(np.mean(resid**2))), whiteness=white,
+                      held_out=held_out, warnings=tuple(warnings),
+                      unit=record.units.get("x", "rad"))
