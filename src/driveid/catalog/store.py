@@ -30,6 +30,7 @@ from driveid._json import to_jsonable
 from driveid.catalog import _schema as S
 from driveid.errors import ConfigError, FileFormatError
 from driveid.identify.estimate import Parameter
+from driveid.io.reading import file_sha256
 
 __all__ = [
     "DEFAULT_CATALOG",
@@ -134,26 +135,6 @@ def parse_time(value: str | dt.datetime | None) -> dt.datetime:
     if stamp.tzinfo is not None:
         stamp = stamp.astimezone(dt.UTC).replace(tzinfo=None)
     return stamp
-
-
-def file_sha256(path: str | Path) -> str:
-    """Return the SHA-256 of a file's bytes, read in 1 MiB blocks (bounded memory).
-
-    Parameters
-    ----------
-    path : str or Path
-        The file.
-
-    Returns
-    -------
-    str
-        64 hexadecimal digits.
-    """
-    digest = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def entry_key(input_hashes: Sequence[str], method: str, *, fallback: Any = None) -> str:

@@ -167,3 +167,28 @@ def check_refit_stability(est: Estimate, refit: Estimate, *, change: str,
                 "backlash, an unmodelled load) or the record ends in noise; try another "
                 "window (--t-start/--t-end) or a richer model")
     return est.with_warnings(*messages)
+
+
+def few_repeats_warning(n: int, what: str) -> list[str]:
+    """Warn that ±1.96 s.e. from the spread of few repeats covers less than 95 %.
+
+    Parameters
+    ----------
+    n : int
+        Number of repeats whose spread gave the standard error [-].
+    what : str
+        What was repeated, e.g. ``"ramps"``.
+
+    Returns
+    -------
+    list of str
+        One warning for 2 <= n < 10 (Student t with n - 1 degrees of freedom), else none.
+    """
+    if not 2 <= n < 10:
+        return []
+    from scipy.stats import t as student
+
+    cover = 100.0 * (2.0 * float(student.cdf(1.96, n - 1)) - 1.0)
+    return [f"standard errors from the spread of {n} {what}: ±1.96 s.e. covers only "
+            f"{cover:.0f} % (Student t, {n - 1} degrees of freedom); use ±"
+            f"{float(student.ppf(0.975, n - 1)):.2f} s.e. for 95 %, or repeat more"]

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify._plausibility import check_plausibility, few_repeats_warning
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.signal.steady import noise_level
@@ -135,7 +136,7 @@ def estimate_breakaway_sliding(
                             "resolution (force step over the rate window), not a "
                             "statistical error; repeat the ramp for one")
         if f.size > 1:
-            warnings += _few_repeats(int(f.size), f"{tag} ramps")
+            warnings += few_repeats_warning(int(f.size), f"{tag} ramps")
         stats[tag] = (float(f.mean()), fse)
         params[f"fs_{tag}"] = Parameter(float(f.mean()), fse, fu)
         params[f"creep_{tag}"] = Parameter(float(np.nanmean(c)) if np.any(np.isfinite(c))
@@ -145,7 +146,7 @@ def estimate_breakaway_sliding(
         se = 0.5 * math.hypot(ep, em)
         params["fs_mean"] = Parameter(0.5 * (fp + fm), se, fu)
         params["fs_delta"] = Parameter(0.5 * (fp - fm), se, fu)
-    return _checked(Estimate(
+    return check_plausibility(Estimate(
         method="breakaway-gross-sliding",
         params=params,
         data_used={"ramps": ramps},
@@ -231,21 +232,3 @@ def rising_friction_from_breakaways(estimate: Estimate) -> Estimate:
                                     np.array([r["force"] for r in rows]), unit=unit)
 
 
-def _checked(est: Estimate) -> Estimate:
-    try:  # the shared plausibility rules (issue 11), where available
-        from driveid.identify._plausibility import check_plausibility
-    except ImportError:  # pragma: no cover
-        return est
-    return check_plausibility(est)
-
-
-def _few_repeats(n: int, what: str) -> list[str]:
-    # a spread over n repeats has n − 1 degrees of freedom: ±1.96 s.e. covers less than 95 %
-    if not 2 <= n < 10:
-        return []
-    from scipy.stats import t as student
-
-    cover = 100.0 * (2.0 * float(student.cdf(1.96, n - 1)) - 1.0)
-    return [f"standard errors from the spread of {n} {what}: ±1.96 s.e. covers only "
-            f"{cover:.0f} % (Student t, {n - 1} degrees of freedom); use ±"
-            f"{float(student.ppf(0.975, n - 1)):.2f} s.e. for 95 %, or repeat more"]

@@ -29,6 +29,7 @@ import numpy as np
 from scipy import optimize
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify._plausibility import check_plausibility, few_repeats_warning
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.signal.differentiate import zero_phase_lowpass
@@ -190,7 +191,7 @@ def estimate_presliding_loop(record: Record, *, smooth: int = 5) -> Estimate:
     warnings = []
     if per is not None:
         se = per.std(axis=0, ddof=1) / math.sqrt(len(branches))
-        warnings += _few_repeats(len(branches), "branches")
+        warnings += few_repeats_warning(len(branches), "branches")
     else:
         se = np.full(2, math.nan)
         warnings.append("fewer than 3 branches: no standard errors; record more cycles")
@@ -199,7 +200,7 @@ def estimate_presliding_loop(record: Record, *, smooth: int = 5) -> Estimate:
         warnings.append(f"the branches do not approach saturation (fitted level {fc:.3g} "
                         f"above 2× the largest force): sigma0 is the slope, the level is "
                         "poorly determined")
-    return _checked(Estimate(
+    return check_plausibility(Estimate(
         method="loop-presliding-dahl",
         params={"sigma0": Parameter(float(sig), float(se[0]), f"{fu}/{xu}"),
                 "fc": Parameter(float(fc), float(se[1]), fu)},
@@ -306,7 +307,7 @@ def estimate_backlash_loop(record: Record, *, threshold: float | None = None,
     if n < 3:
         warnings.append("fewer than 3 reversals: no standard errors; record more cycles")
     else:
-        warnings += _few_repeats(n, "reversals")
+        warnings += few_repeats_warning(n, "reversals")
 
     def se(v: np.ndarray) -> float:
         return float(v.std(ddof=1) / math.sqrt(v.size)) if v.size >= 3 else math.nan
@@ -328,7 +329,7 @@ def estimate_backlash_loop(record: Record, *, threshold: float | None = None,
     s_lev = 0.5 * math.hypot(lp.stderr, lm.stderr)
     params["fk_mean"] = Parameter(0.5 * (f_plus + f_minus), s_lev, fu_unit)
     params["fk_delta"] = Parameter(0.5 * (f_plus - f_minus), s_lev, fu_unit)
-    return _checked(Estimate(
+    return check_plausibility(Estimate(
         method="loop-backlash-deadzone",
         params=params,
         data_used={"halves": halves, "gaps": g, "stiffness": k},
@@ -337,21 +338,3 @@ def estimate_backlash_loop(record: Record, *, threshold: float | None = None,
     ))
 
 
-def _checked(est: Estimate) -> Estimate:
-    try:  # the shared plausibility rules (issue 11), where available
-        from driveid.identify._plausibility import check_plausibility
-    except ImportError:  # pragma: no cover
-        return est
-    return check_plausibility(est)
-
-
-def _few_repeats(n: int, what: str) -> list[str]:
-    # a spread over n repeats has n − 1 degrees of freedom: ±1.96 s.e. covers less than 95 %
-    if not 2 <= n < 10:
-        return []
-    from scipy.stats import t as student
-
-    cover = 100.0 * (2.0 * float(student.cdf(1.96, n - 1)) - 1.0)
-    return [f"standard errors from the spread of {n} {what}: ±1.96 s.e. covers only "
-            f"{cover:.0f} % (Student t, {n - 1} degrees of freedom); use ±"
-            f"{float(student.ppf(0.975, n - 1)):.2f} s.e. for 95 %, or repeat more"]

@@ -238,10 +238,11 @@ def multisine(*, f_min: float, f_max: float, duration: float, fs: float, amplitu
 
     Notes
     -----
-    Phases ``φ_k = -π k (k - 1) / F`` for lines ``k = 1..F`` (Schroeder 1970, reference [3] of the module). For a
-    flat amplitude spectrum of many consecutive lines the crest factor is about 1.7
-    (Pintelon & Schoukens 2012, reference [2] of the module, §5.2: Schroeder phases give ≈ 1.7 against ≈ 3-4 for
-    random phases); tested in ``tests/signal/test_excitation.py``.
+    Phases ``φ_k = -π k (k - 1) / F`` for lines ``k = 1..F`` (Schroeder 1970, reference
+    [3] of the module). For a flat amplitude spectrum of many consecutive lines the crest
+    factor is about 1.7 (Pintelon & Schoukens 2012, reference [2] of the module, §5.2:
+    Schroeder phases give ≈ 1.7 against ≈ 3-4 for random phases); tested in
+    ``tests/signal/test_excitation.py``.
 
     Examples
     --------
