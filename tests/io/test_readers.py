@@ -334,3 +334,35 @@ def test_any_delimited_export_reads_back(tmp_path_factory, sep, decimal, preambl
     factor = to_si("x", unit)[1]
     np.testing.assert_allclose(rec.x, x * factor, rtol=1e-9)  # 10 significant digits written
     np.testing.assert_allclose(rec.t, t, atol=1e-12)
+
+
+def test_metadata_pair_above_a_single_unnamed_column(tmp_path):
+    # a hobby rig's export: a line of names and a line of values, then one column of angles
+    # in degrees, no time column; the rate comes from the file's own 'sample_rate' entry
+    angle = 45.0 * np.cos(2 * np.pi * 1.7 * np.arange(600) / 1000.0)
+    lines = ["trigger_start_deg, sample_rate, duration_sec", "45, 1000, 0.6 "]
+    lines += [f"{a:.2f}" for a in angle]
+    path = tmp_path / "pendulum.txt"
+    path.write_text("\n".join(lines) + "\n")
+    from driveid.io import read_record
+
+    rec = read_record(path, columns={"x": 0}, units={"x": "deg"})
+    assert rec.n == 600 and rec.fs == pytest.approx(1000.0)
+    assert rec.x[0] == pytest.approx(np.radians(45.0), abs=1e-4)  # 0.01 deg written
+    assert rec.units["x"] == "rad" and "x" not in rec.meta["units_in_file"]  # from --unit
+
+
+@pytest.mark.shared_data
+def test_rotary_pendulum_records_read_and_fit(shared_data):
+    from driveid.identify.output_error import estimate_output_error
+    from driveid.io import read_record
+
+    folder = shared_data / "rotary_pendulum_free_swing"
+    rec = read_record(folder / "pendulum_free_swing_data_03.txt", columns={"x": 0},
+                      units={"x": "deg"})
+    assert rec.n == 5000 and rec.fs == pytest.approx(1000.0)  # SOURCE.md: 1 kHz for 5 s
+    est = estimate_output_error([rec])
+    # released from 45 deg: a ~1.7 Hz pendulum (measured 10.57 rad/s); the sin(theta)
+    # nonlinearity makes this an amplitude-averaged value, so only a plausible band is checked
+    assert 10.0 < est.value("omega0") < 11.2
+    assert est.value("theta_k_mean") > 0  # SOURCE.md: a clear Coulomb component

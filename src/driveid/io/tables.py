@@ -258,7 +258,7 @@ def _sniff(lines: list[str]) -> tuple[str | None, str, int, int]:
     """Delimiter, decimal mark, index of the first data line and number of fields."""
     best: tuple[int, int, str | None, str, int] | None = None
     for rank, (sep, decimal) in enumerate(_CANDIDATES):
-        start, widths, commas = None, [], False
+        start, widths, rows, commas = None, [], [], False
         for i, line in enumerate(lines):
             if not line.strip() or _is_comment(line):
                 continue
@@ -267,11 +267,16 @@ def _sniff(lines: list[str]) -> tuple[str | None, str, int, int]:
                 if start is None:
                     start = i
                 widths.append(len(parts))
+                rows.append(i)
                 commas = commas or any("," in p for p in parts)
             else:
-                start, widths, commas = None, [], False
+                start, widths, rows, commas = None, [], [], False
         if start is None or (decimal == "," and not commas):
             continue
+        if len(widths) > 8 and widths[0] > max(widths[1:]):
+            # one wide row of values above a long, narrower block: a metadata pair
+            # ('trigger_start_deg, sample_rate, duration_sec' / '90, 1000, 5'), not data
+            start, widths = rows[1], widths[1:]
         width = max(widths)  # rows may end early: a sparse last column (events, marks)
         key = (width, -rank)
         if best is None or key > best[:2]:
@@ -316,7 +321,8 @@ def _read_text(path: Path) -> Table:
             fs = float(match.group(3)) * (1e3 if (match.group(4) or "").lower() == "khz" else 1)
     unit_row: list[str] | None = None
     used: set[int] = set()
-    for index in range(start - 1, -1, -1):
+    pair = _metadata_pair(lines[:start], sep, decimal)
+    for index in range(start - 1, -1 if not pair else start - 1, -1):  # a pair: no header
         line = lines[index]
         if not line.strip():
             continue
@@ -349,6 +355,11 @@ def _read_text(path: Path) -> Table:
         raise FileFormatError(
             f"{path.name}: rows below the header cannot be parsed ({exc}); every row must "
             f"have the {width} fields of the first data row") from None
+    for key, value in pair.items():
+        notes[key] = value
+        if fs is None and re.fullmatch(r"(sampl\w*[ _]?(rate|freq\w*)|fs|rate)(_hz)?", key,
+                                       re.IGNORECASE):
+            fs = float(value.replace(",", ".") if decimal == "," else value)
     for index, line in enumerate(lines[:start]):
         body = line.strip()
         if index in used or not body or (body.startswith("#") and "meta:" in body):
@@ -380,6 +391,21 @@ def _read_text(path: Path) -> Table:
     return Table(columns=columns, units=units, meta=meta, fs=fs, notes=notes,
                  format=f"text ({sep_name}, decimal {decimal!r}, {where}"
                         f"{', units row' if unit_row else ''})")
+
+
+def _metadata_pair(preamble: list[str], sep: str | None, decimal: str) -> dict[str, str]:
+    """``{name: value}`` from a line of names followed by a line of as many numbers."""
+    body = [line for line in preamble if line.strip() and not _is_comment(line)]
+    if len(body) < 2:
+        return {}
+    # a one-column data block fits any delimiter: split the pair by its own
+    for split in dict.fromkeys((sep, ",", ";", "\t", None)):
+        names, values = _fields(body[-2], split), _fields(body[-1], split)
+        if (len(names) == len(values) and not _numeric(names, decimal)
+                and _numeric(values, decimal)):
+            return {n.strip(): v.strip() for n, v in zip(names, values, strict=True)
+                    if n.strip()}
+    return {}
 
 
 # -- structured containers ----------------------------------------------------------------
