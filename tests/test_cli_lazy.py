@@ -26,9 +26,11 @@ def test_every_lazy_entry_is_a_click_command_with_that_name(name, entry):
     assert short.endswith(".") and len(short) <= 70  # shown in one --help row
 
 
-def test_top_level_help_imports_no_heavy_module():
+@pytest.mark.parametrize("argv", [["--help"], ["identify", "logdec", "--help"],
+                                  ["pho", "run", "--help"], ["simulate", "free-decay", "--help"]])
+def test_help_imports_no_heavy_module(argv):
     code = ("import sys; from driveid.cli import cli; "
-            "cli.main(['--help'], standalone_mode=False); "
+            f"cli.main({argv!r}, standalone_mode=False); "
             "heavy = [m for m in ('numba', 'scipy.signal', 'scipy.optimize', 'matplotlib', "
             "'pandas') if m in sys.modules]; print('HEAVY', heavy)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -7,8 +7,6 @@ import click
 from driveid.commands import clean_errors
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
-from driveid.identify.hilbert import estimate_hilbert
-from driveid.identify.wavelet import estimate_wavelet
 
 __all__ = ["hilbert_command", "wavelet_command"]
 
@@ -42,6 +40,8 @@ def hilbert_command(file, mass, check_window, record_opts, output_opts):
 
     --json --series adds the time series t, omega0, zeta, amplitude under "data_used".
     """
+    from driveid.identify.hilbert import estimate_hilbert
+
     record = record_opts.read(file).resampled_uniform(purpose="the Hilbert transform")
     est = _checked(estimate_hilbert(record, mass=mass),
                    lambda rec: estimate_hilbert(rec, mass=mass), record, check_window)
@@ -72,6 +72,8 @@ def wavelet_command(file, modes, omega_c, check_window, record_opts, output_opts
     With several modes the parameters are omega0_1, zeta_1, omega0_2 ...; --json --series
     adds each mode's time series under "data_used".
     """
+    from driveid.identify.wavelet import estimate_wavelet
+
     record = record_opts.read(file).resampled_uniform(purpose="the wavelet transform")
     def fit(rec):
         return estimate_wavelet(rec, modes=modes, omega_c=omega_c)

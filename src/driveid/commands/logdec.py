@@ -9,9 +9,6 @@ import click
 from driveid.commands import clean_errors
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
-from driveid.identify.logdec import estimate_log_decrement, estimate_log_decrement_thesis
-from driveid.io import write_record
-from driveid.sim import OscillatorParams, measure, simulate_free_decay
 
 __all__ = ["free_decay_command", "logdec_command"]
 
@@ -57,6 +54,9 @@ def free_decay_command(J, K, c_mean, c_delta, fk_mean, fk_delta, fs_mean, fs_del
                        duration, fs, noise, counts_per_rev, counts_per_metre, units, seed, out,
                        overwrite, force_alias):
     """Simulate an exact free decay with asymmetric friction and write it as a record."""
+    from driveid.io import write_record
+    from driveid.sim import OscillatorParams, measure, simulate_free_decay
+
     params = OscillatorParams(J=J, K=K, c_mean=c_mean, c_delta=c_delta, fk_mean=fk_mean,
                               fk_delta=fk_delta, fs_mean=fs_mean, fs_delta=fs_delta)
     result = simulate_free_decay(params, x0=x0, duration=duration, fs=fs)
@@ -131,6 +131,11 @@ def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, b
         records = [r.resampled_uniform(purpose="peak refinement") for r in raw]
 
         def fit(recs):
+            from driveid.identify.logdec import (
+                estimate_log_decrement,
+                estimate_log_decrement_thesis,
+            )
+
             if method in ("lsq", "peaks"):
                 return estimate_log_decrement(recs, mass=mass, stiffness=stiffness)
             return estimate_log_decrement_thesis(recs[0], corrected=(method == "thesis"),

@@ -12,9 +12,7 @@ from driveid.commands._output import emit, output_options, plot_of
 from driveid.commands._progress import progress_bar
 from driveid.commands._record_options import RecordOptions, record_options
 from driveid.errors import ParameterError
-from driveid.experiment import SimulatedPlant, run_pho_campaign
-from driveid.experiment.pho import MAX_RUNS
-from driveid.io.consistency import check_count
+from driveid.io.consistency import MAX_CAMPAIGN_RUNS, check_count
 from driveid.io.manifest import read_manifest
 from driveid.sim.presets import PRESETS, preset, preset_units
 
@@ -150,7 +148,7 @@ def pho_group():
 @click.option("--resume", is_flag=True,
               help="Continue an interrupted campaign in --out (same options): the runs "
                    "listed are kept, the others are run.")
-@click.option("--max-runs", type=int, default=MAX_RUNS, show_default=True,
+@click.option("--max-runs", type=int, default=MAX_CAMPAIGN_RUNS, show_default=True,
               help="Most runs a campaign may plan (a guard against a mistyped --n-D).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--c-delta", type=float, default=None,
@@ -176,6 +174,8 @@ def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, 
         P_values = [start + i * step for i in range(n)]
     else:
         P_values = defaults["P_values"]
+    from driveid.experiment import SimulatedPlant, run_pho_campaign
+
     plant = SimulatedPlant(_asymmetric(plant_name, c_delta, fk_delta), noise_std=noise,
                            counts_per_rev=counts_per_rev, counts_per_unit=counts_per_metre,
                            seed=seed, units=preset_units(plant_name), name=plant_name)

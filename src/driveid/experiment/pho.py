@@ -42,7 +42,7 @@ import numpy as np
 
 from driveid.errors import DriveIdError, OverwriteError, ParameterError
 from driveid.experiment.plant import Plant
-from driveid.io.consistency import check_allocation, check_count
+from driveid.io.consistency import MAX_CAMPAIGN_RUNS, check_allocation, check_count
 from driveid.io.files import read_record, write_record
 from driveid.io.manifest import (
     MANIFEST_NAME,
@@ -61,7 +61,7 @@ from driveid.signal.peaks import find_oscillation_peaks
 MIN_DECAY_PEAKS = 5
 #: Most runs a campaign plans without an explicit ``max_runs`` (CLI ``--max-runs``): the
 #: thesis's largest campaign had a few hundred; 10 000 runs of 5 s are 14 h of testing.
-MAX_RUNS = 10_000
+MAX_RUNS = MAX_CAMPAIGN_RUNS
 #: Bytes held per sample while a run is simulated and checked (t, x, u, v and temporaries).
 _BYTES_PER_SAMPLE_RUN = 96
 #: Bytes kept per sample of every finished run (t, x, u, v in the returned Campaign).

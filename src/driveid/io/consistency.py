@@ -28,6 +28,7 @@ import numpy as np
 from driveid.errors import FileFormatError, ParameterError, RecordWarning
 
 __all__ = [
+    "MAX_CAMPAIGN_RUNS",
     "check_meta_units",
     "warn_duplicates",
     "duplicate_groups",
@@ -358,6 +359,11 @@ def check_allocation(n_samples: float, bytes_per_sample: float, what: str, *,
             f"{bytes_per_sample:g} B), more than the {_fmt_bytes(limit)} of memory available; "
             f"{hint}")
     return int(n_samples)
+
+
+#: Most runs a campaign plans without an explicit override (CLI ``--max-runs``): the
+#: largest grid a mistyped ``--n-D`` should not start silently [-].
+MAX_CAMPAIGN_RUNS = 10_000
 
 
 def check_count(count: int, limit: int, what: str, *, override: str) -> int:

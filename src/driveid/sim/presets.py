@@ -24,7 +24,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from driveid.errors import ParameterError
-from driveid.sim.drive import BacklashLink, BodyParams, DriveParams, PDFeedback, ShaftLink
+from driveid.sim.drive_types import (
+    BacklashLink,
+    BodyParams,
+    DriveParams,
+    PDFeedback,
+    ShaftLink,
+)
 
 __all__ = [
     "TABLE_5_2_PUBLISHED",
