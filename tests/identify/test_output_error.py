@@ -196,3 +196,21 @@ def test_encoder_offset_warns_only_when_it_makes_friction_push():
     # with the spring zero given, the symmetric truth comes back (clean record: 1e-6 of fk)
     assert abs(told.value("fk_delta")) < 1e-6 * 0.07
     assert told.value("fk_mean") == pytest.approx(0.07, rel=1e-6)
+
+
+def test_long_records_are_fitted_on_every_kth_sample_with_honest_errors(monkeypatch):
+    # the memory bound of issue 12, forced on a short record: 4x fewer samples -> the same
+    # estimate within its errors, and errors about sqrt(4) = 2x those of the full fit
+    import driveid.identify.output_error as oe
+
+    rec = _decay(fs=1000.0, duration=20.0, x0=1.0)
+    noisy = Record(t=rec.t, x=rec.x + np.random.default_rng(3).normal(0, 1e-3, rec.n))
+    full = estimate_output_error([noisy], mass=1.0, quantisation=None)
+    monkeypatch.setattr(oe, "_MAX_FIT_SAMPLES", rec.n // 4 + 1)
+    thin = estimate_output_error([noisy], mass=1.0, quantisation=None)
+    assert any("every 4th sample" in w for w in thin.warnings)
+    for name in ("c_mean", "fk_mean", "omega0"):
+        ratio = thin.stderr(name) / full.stderr(name)
+        assert 1.6 < ratio < 2.5, (name, ratio)  # sqrt(4) = 2, +-25 % for the candidate mix
+        # same data subsampled: the two estimates differ by ~ the thin fit's error
+        assert abs(thin.value(name) - full.value(name)) < 4 * thin.stderr(name)

@@ -57,6 +57,11 @@ _ZETA_BOUND = 0.999  # |ζ| < 1: the model is underdamped by construction
 #: Above this many samples the stop-count search and the start values use a decimated
 #: copy; the final fits use every sample (so the efficiency is unchanged).
 _SEARCH_SAMPLES = 60_000
+#: Most samples of the final fit; longer records are fitted on every k-th sample. White noise
+#: stays white and the model is exact at the kept times, so the estimate stays unbiased and
+#: its error bars honest (variance ~k times the full record's bound); the n x p Jacobian
+#: then stays below ~200 MB (issue 12: 1e7 samples needed > 2.7 GB).
+_MAX_FIT_SAMPLES = 2_000_000
 
 
 def detect_quantum(x: np.ndarray) -> float | None:
@@ -376,6 +381,9 @@ def estimate_output_error(
     # one BLAS thread: the products are small (p = 7..20) and threads only contend
     with threadpool_limits(limits=1):
         problem = _Problem([np.asarray(r.t, float) for r in records], y, drift)
+        subsample = math.ceil(problem.n / _MAX_FIT_SAMPLES)
+        if subsample > 1:
+            problem = problem.decimated(subsample)
         glob, releases, mid_swing = _guess(records, y, mass, stiffness)
         p0 = list(glob)
         for x_r, t_r in releases:
@@ -407,8 +415,15 @@ def estimate_output_error(
             for c in candidates:
                 c["cov"] = boot
         p, cov, weights = _combine(candidates)
-        return _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum,
-                         mass, stiffness, x_ref, mid_swing, bootstrap)
+        est = _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum,
+                        mass, stiffness, x_ref, mid_swing, bootstrap)
+    if subsample > 1:
+        est = est.with_warnings(
+            f"{problem.n * subsample} samples: fitted on every {subsample}th sample "
+            f"({problem.n}) to bound memory; unbiased, with error bars about "
+            f"{math.sqrt(subsample):.1f}x the full record's bound (crop with --t-start/--t-end "
+            "to fit every sample of a shorter window)")
+    return est
 
 
 def _stop_counts(problem, p):

@@ -421,6 +421,9 @@ def record_from_table(
         meta["fs_given"] = float(rate)
     if window is not None and window != (None, None) and t_all.size:
         meta["window_requested"] = [None if w is None else float(w) for w in window]
+    for arr in arrays.values():
+        if arr.dtype == np.float64 and arr.base is None and arr.flags.writeable:
+            arr.setflags(write=False)  # ours alone: the Record may keep it without a copy
     return record_type(t=arrays["t"], x=arrays["x"], v=arrays.get("v"), u=arrays.get("u"),
                        meta=meta, max_jitter=max_jitter)
 
