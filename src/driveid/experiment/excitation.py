@@ -30,6 +30,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from driveid.errors import OverwriteError, ParameterError
+from driveid.experiment.plant import _UNITS  # one table of unit names per axis kind
 from driveid.io.files import write_record
 from driveid.io.record import Record
 from driveid.io.safe_write import atomic_write_text
@@ -43,10 +44,6 @@ __all__ = ["ExcitablePlant", "SimulatedExcitationPlant", "ExcitationRuns", "run_
 
 #: Manifest file name of an excitation campaign.
 EXCITATION_MANIFEST = "excitation.json"
-
-_UNITS = {"rad": {"x": "rad", "u": "N·m", "v": "rad/s"},
-          "m": {"x": "m", "u": "N", "v": "m/s"}}
-
 
 @runtime_checkable
 class ExcitablePlant(Protocol):
