@@ -147,7 +147,7 @@ def test_end_to_end_with_simulator():
             feedback=PDFeedback(P=P, D=D, delay=DELAY),
         )
         result = simulate_drive(params, duration=6.0, fs=2000.0, x0=[0.1])
-        ld = estimate_log_decrement(result.record(0))
+        ld = estimate_log_decrement(result.record)
         w0 = ld.value("omega0")
         zeta = 0.5 * (ld.value("zeta_plus") + ld.value("zeta_minus"))
         zeta_se = 0.5 * math.hypot(ld.stderr("zeta_plus"), ld.stderr("zeta_minus"))

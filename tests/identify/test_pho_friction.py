@@ -43,7 +43,7 @@ def body(plant):
 def run(plant, P, D, x0, *, seed=0, duration=6.0):
     params = DriveParams(bodies=(body(plant),),
                          feedback=PDFeedback(P=P, D=D, delay=plant["delay"]))
-    rec = simulate_drive(params, duration=duration, fs=1000.0, x0=[x0]).record(0)
+    rec = simulate_drive(params, duration=duration, fs=1000.0, x0=[x0]).record
     rec = measure(rec, rng=np.random.default_rng(seed), **plant["encoder"])
     return Record(rec.t, rec.x, u=rec.u, meta=dict(rec.meta, P=P, D=D))
 
@@ -65,7 +65,7 @@ def test_kinetic_offset_is_force_over_k_plus_p_not_the_free_decay_one():
     P, D = 2.0, 0.03
     params = DriveParams(bodies=(body(TESTBED),),
                          feedback=PDFeedback(P=P, D=D, delay=TESTBED["delay"]))
-    records = [simulate_drive(params, duration=6.0, fs=1000.0, x0=[s]).record(0)
+    records = [simulate_drive(params, duration=6.0, fs=1000.0, x0=[s]).record
                for s in (1.0, -1.0)]
     ld = estimate_log_decrement(records, peaks=[pho_peaks(r) for r in records])
     ours = ld.value("theta_k_mean") * P
@@ -82,7 +82,7 @@ def test_delay_correction_of_the_mean_offset():
     P, D = 8.0, 0.09
     params = DriveParams(bodies=(body(TESTBED),),
                          feedback=PDFeedback(P=P, D=D, delay=TESTBED["delay"]))
-    records = [simulate_drive(params, duration=6.0, fs=1000.0, x0=[s]).record(0)
+    records = [simulate_drive(params, duration=6.0, fs=1000.0, x0=[s]).record
                for s in (1.0, -1.0)]
     feat = pho_run_from_records(records, P=P, D=D)
     plain = feat.theta_k_mean * P / TESTBED["fk_mean"] - 1

@@ -188,7 +188,7 @@ def test_w3_three_body_drive_settles_near_the_reference():
     assert np.max(np.abs(res.x - fine.x)) < 1e-5
     # motor friction 0.02 N·m over P = 5: the motor rests within 4 mrad (+ loop) of r = 1
     assert abs(res.x[0, -1] - 1.0) < 0.02
-    assert res.record(2).x.size == res.t.size
+    assert res.body_record(2).x.size == res.t.size
 
 
 # ------------------------------------------------------------------ error paths

@@ -85,7 +85,7 @@ def test_callback_delay_and_vector_torque():
     np.testing.assert_allclose(res.x[1], -u * tt ** 2 / 2, atol=1e-13)
     assert res.command.shape == (2, res.t.size)
     assert np.all(res.command[0][res.t < t0] == 0) and np.all(res.command[0][res.t >= t0] == u)
-    assert np.all(res.record(1).u[res.t >= t0] == -u)
+    assert np.all(res.body_record(1).u[res.t >= t0] == -u)
 
 
 def test_fast_controller_and_saturation_abort():

@@ -408,13 +408,24 @@ class DriveResult:
     abort_time: float | None
     params: DriveParams = field(repr=False)
 
-    def record(self, body: int = 0) -> Record:
+    @property
+    def record(self) -> Record:
+        """The response of body 0 as a :class:`~driveid.io.record.Record`.
+
+        The same kind of member as :attr:`driveid.sim.FreeDecay.record`; other bodies:
+        :meth:`body_record`.
+        """
+        return self.body_record(0)
+
+    def body_record(self, body: int = 0) -> Record:
         """Return the response of one body as a :class:`~driveid.io.record.Record`.
 
         Parameters
         ----------
         body : int
-            Body index.
+            Body index, 0-based as in ``DriveParams.bodies`` and the TOML paths
+            (``body[0]``); the CSV written by ``driveid simulate drive`` numbers its columns
+            from 1 (``x1`` is body 0), as the thesis letters bodies A, B, C.
 
         Returns
         -------
