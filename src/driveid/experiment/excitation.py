@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import datetime
 import json
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,14 +29,13 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from driveid.errors import OverwriteError, ParameterError
-from driveid.experiment.plant import _UNITS  # one table of unit names per axis kind
+from driveid.experiment.plant import AXIS_UNITS, resolve_simulated_plant
 from driveid.io.files import write_record
 from driveid.io.record import Record
 from driveid.io.safe_write import atomic_write_text
 from driveid.signal.excitation import Excitation
 from driveid.sim.drive import DriveParams, simulate_drive
 from driveid.sim.oscillator import measure
-from driveid.sim.presets import preset, preset_units
 
 __all__ = ["ExcitablePlant", "SimulatedExcitationPlant", "ExcitationRuns", "run_excitations",
            "EXCITATION_MANIFEST"]
@@ -106,23 +104,9 @@ class SimulatedExcitationPlant:
     def __init__(self, params: DriveParams | str, *, body: int = 0, noise_std: float = 0.0,
                  seed: int | None = None, units: str | None = None,
                  name: str | None = None) -> None:
-        if isinstance(params, str):
-            name = params if name is None else name
-            units = preset_units(params) if units is None else units
-            params = preset(params)
-        if not isinstance(params, DriveParams):
-            raise ParameterError(
-                f"params must be a DriveParams or a preset name; got {type(params).__name__}")
-        units = "rad" if units is None else units
-        if units not in _UNITS:
-            raise ParameterError(f'units must be "rad" or "m"; got {units!r}')
-        if not (isinstance(body, int) and 0 <= body < params.n_bodies):
-            raise ParameterError(
-                f"body must index one of the {params.n_bodies} bodies; got {body!r}")
-        if not (math.isfinite(noise_std) and noise_std >= 0):
-            raise ParameterError(f"noise_std must be >= 0 [rad or m]; got {noise_std!r}")
-        self.params, self.body, self.units = params, body, units
-        self.name = name or "simulated"
+        params, units, name, body = resolve_simulated_plant(params, units=units, name=name,
+                                                            body=body, noise_std=noise_std)
+        self.params, self.body, self.units, self.name = params, body, units, name
         self.noise_std = float(noise_std)
         self._rng = np.random.default_rng(seed)
 
@@ -145,7 +129,7 @@ class SimulatedExcitationPlant:
         result = simulate_drive(self.params, duration=(n - 1) / signal.fs, fs=signal.fs,
                                 torque=torque)
         fb = self.params.feedback
-        meta = {"plant": self.name, "units": dict(_UNITS[self.units]),
+        meta = {"plant": self.name, "units": dict(AXIS_UNITS[self.units]),
                 "P": 0.0 if fb is None else float(fb.P),
                 "D": 0.0 if fb is None else float(fb.D),
                 "delay": 0.0 if fb is None else float(fb.delay),

@@ -45,10 +45,59 @@ from driveid.sim.drive import DriveParams, PDFeedback, simulate_drive
 from driveid.sim.oscillator import measure
 from driveid.sim.presets import preset, preset_units
 
-__all__ = ["Plant", "SimulatedPlant", "LoopbackPlant"]
+__all__ = ["Plant", "SimulatedPlant", "LoopbackPlant", "AXIS_UNITS", "resolve_simulated_plant"]
 
-_UNITS = {"rad": {"x": "rad", "u": "N·m", "v": "rad/s"},
+#: Unit names of a record by kind of axis (rotational "rad", translational "m").
+AXIS_UNITS = {"rad": {"x": "rad", "u": "N·m", "v": "rad/s"},
           "m": {"x": "m", "u": "N", "v": "m/s"}}
+
+
+def resolve_simulated_plant(params: DriveParams | str, *, units: str | None, name: str | None,
+                            body: int | None, noise_std: float
+                            ) -> tuple[DriveParams, str, str, int]:
+    """Resolve a simulated plant's drive, units, name and measured body, or refuse them.
+
+    Parameters
+    ----------
+    params : DriveParams or str
+        The drive, or a preset name of :data:`driveid.sim.presets.PRESETS`.
+    units : str or None
+        "rad" or "m"; default from the preset, else "rad".
+    name : str or None
+        Plant name; default the preset name or "simulated".
+    body : int or None
+        Index of the measured body; default the body the feedback drives, else 0.
+    noise_std : float
+        Position noise standard deviation [rad or m], finite and >= 0.
+
+    Returns
+    -------
+    tuple
+        ``(params, units, name, body)``.
+
+    Raises
+    ------
+    ParameterError
+        Not a drive or preset, unknown units, a body index out of range, bad noise.
+    """
+    if isinstance(params, str):
+        name = params if name is None else name
+        units = preset_units(params) if units is None else units
+        params = preset(params)
+    if not isinstance(params, DriveParams):
+        raise ParameterError(
+            f"params must be a DriveParams or a preset name; got {type(params).__name__}")
+    units = "rad" if units is None else units
+    if units not in AXIS_UNITS:
+        raise ParameterError(f'units must be "rad" or "m"; got {units!r}')
+    if body is None:
+        body = params.feedback.body if params.feedback is not None else 0
+    if not (isinstance(body, int) and 0 <= body < params.n_bodies):
+        raise ParameterError(
+            f"body must index one of the {params.n_bodies} bodies; got {body!r}")
+    if not (math.isfinite(noise_std) and noise_std >= 0):
+        raise ParameterError(f"noise_std must be >= 0 [rad or m]; got {noise_std!r}")
+    return params, units, name or "simulated", body
 
 
 @runtime_checkable
@@ -163,29 +212,15 @@ class SimulatedPlant:
                  counts_per_rev: float | None = None, counts_per_unit: float | None = None,
                  seed: int | None = None, body: int | None = None, units: str | None = None,
                  name: str | None = None) -> None:
-        if isinstance(params, str):
-            name = params if name is None else name
-            units = preset_units(params) if units is None else units
-            params = preset(params)
-        if not isinstance(params, DriveParams):
-            raise ParameterError(
-                f"params must be a DriveParams or a preset name; got {type(params).__name__}")
-        units = "rad" if units is None else units
-        if units not in _UNITS:
-            raise ParameterError(f'units must be "rad" or "m"; got {units!r}')
+        params, units, name, body = resolve_simulated_plant(params, units=units, name=name,
+                                                            body=body, noise_std=noise_std)
         fb = params.feedback
-        body = (fb.body if fb is not None else 0) if body is None else body
-        if not (isinstance(body, int) and 0 <= body < params.n_bodies):
-            raise ParameterError(
-                f"body must index one of the {params.n_bodies} bodies; got {body!r}")
-        if noise_std < 0:
-            raise ParameterError(f"noise_std must be >= 0 [rad or m]; got {noise_std!r}")
         if units == "m" and counts_per_rev is not None:
             raise ParameterError(
                 "a translational plant (units m) takes counts_per_unit [counts/m] (CLI: "
                 f"--counts-per-metre), not counts_per_rev; got counts_per_rev={counts_per_rev!r}")
         self.params = params
-        self.name = name or "simulated"
+        self.name = name
         self.units = units
         self.body = body
         self.delay = fb.delay if fb is not None else 0.0
@@ -239,7 +274,7 @@ class SimulatedPlant:
         meta = {
             "plant": self.name, "P": float(P), "D": float(D), "x0": float(x0),
             "x0_sign": int(math.copysign(1, x0)), "delay": self.delay,
-            "units": dict(_UNITS[self.units]), "aborted": bool(result.aborted),
+            "units": dict(AXIS_UNITS[self.units]), "aborted": bool(result.aborted),
             "abort_reason": result.abort_reason,
             "saturation": None if math.isinf(self.saturation) else self.saturation,
             "abort_limit": None if math.isinf(abort_limit) else float(abort_limit),
@@ -310,7 +345,7 @@ class LoopbackPlant:
             raise ParameterError(f"delay_samples must be an int >= 0; got {delay_samples!r}")
         if not (isinstance(substeps, int) and substeps >= 1):
             raise ParameterError(f"substeps must be an int >= 1; got {substeps!r}")
-        if units not in _UNITS:
+        if units not in AXIS_UNITS:
             raise ParameterError(f'units must be "rad" or "m"; got {units!r}')
         self.J, self.c, self.fk, self.K = float(J), float(c), float(fk), float(K)
         self.delay_samples = delay_samples
@@ -402,7 +437,7 @@ class LoopbackPlant:
             "overruns": int(np.sum(ticks > period)),
         }
         t, xr, ur = _pad(np.arange(k_end) / fs, xs[:k_end], us[:k_end], fs)
-        units = dict(_UNITS[self.units])
+        units = dict(AXIS_UNITS[self.units])
         meta = {
             "plant": self.name, "P": float(P), "D": float(D), "x0": float(x0),
             "x0_sign": int(math.copysign(1, x0)), "delay": (nd + 0.5) / fs, "units": units,
