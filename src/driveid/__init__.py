@@ -39,10 +39,11 @@ True
 
 from __future__ import annotations
 
-import importlib
 import signal
 import sys
 from typing import Any
+
+from driveid._lazy_exports import lazy_exports
 
 
 def _interrupted_while_starting(signum: int, frame: Any) -> None:  # pragma: no cover
@@ -90,15 +91,4 @@ _EXPORTS = {
 __all__ = ["__version__", *_EXPORTS]
 
 
-def __getattr__(name: str) -> Any:
-    """Import a public name of :data:`__all__` on first use."""
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'driveid' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports('driveid', globals(), _EXPORTS)

@@ -6,8 +6,7 @@ Presets of the thesis's plants are in :mod:`driveid.sim.presets`, TOML configs i
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from driveid._lazy_exports import lazy_exports
 
 # Public name -> module; imported on first use (PEP 562) so that reading a preset's names or
 # parameter types does not load the numba engines (`driveid pho run --help` stays fast).
@@ -31,18 +30,7 @@ _EXPORTS = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    """Import a public simulator name on first use."""
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'driveid.sim' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports('driveid.sim', globals(), _EXPORTS)
 
 
 __all__ = [
