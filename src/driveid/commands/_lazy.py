@@ -51,16 +51,16 @@ class LazyGroup(click.Group):
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         """List commands with their short help without importing the lazy ones."""
+        names = self.list_commands(ctx)
+        limit = formatter.width - 6 - max((len(n) for n in names), default=0)
         rows = []
-        for name in self.list_commands(ctx):
+        for name in names:
             if name in self.lazy_commands:
                 rows.append((name, self.lazy_commands[name][1]))
                 continue
             command = super().get_command(ctx, name)
             if command is not None and not command.hidden:
-                rows.append((name, command.get_short_help_str(limit=formatter.width - 6
-                                                              - max(len(n) for n in
-                                                                    self.list_commands(ctx)))))
+                rows.append((name, command.get_short_help_str(limit=limit)))
         if rows:
             with formatter.section("Commands"):
                 formatter.write_dl(rows)

@@ -381,7 +381,8 @@ def estimate_output_error(
     # one BLAS thread: the products are small (p = 7..20) and threads only contend
     with threadpool_limits(limits=1):
         problem = _Problem([np.asarray(r.t, float) for r in records], y, drift)
-        subsample = math.ceil(problem.n / _MAX_FIT_SAMPLES)
+        n_given = problem.n
+        subsample = math.ceil(n_given / _MAX_FIT_SAMPLES)
         if subsample > 1:
             problem = problem.decimated(subsample)
         glob, releases, mid_swing = _guess(records, y, mass, stiffness)
@@ -419,7 +420,7 @@ def estimate_output_error(
                         mass, stiffness, x_ref, mid_swing, bootstrap)
     if subsample > 1:
         est = est.with_warnings(
-            f"{problem.n * subsample} samples: fitted on every {subsample}th sample "
+            f"{n_given} samples: fitted on every {subsample}th sample "
             f"({problem.n}) to bound memory; unbiased, with error bars about "
             f"{math.sqrt(subsample):.1f}x the full record's bound (crop with --t-start/--t-end "
             "to fit every sample of a shorter window)")
