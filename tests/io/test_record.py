@@ -144,3 +144,14 @@ def test_unknown_unit_is_an_error(tmp_path):
     (tmp_path / "furlong.csv").write_text("t [s],x [furlong]\n" + rows)
     with pytest.raises(FileFormatError, match="'furlong'.*does not know"):
         read_record(tmp_path / "furlong.csv")
+
+
+def test_unsorted_time_message_shows_plain_numbers():
+    # numpy 2 reprs scalars as np.float64(...); a user should read the times as numbers
+    from driveid.errors import RecordError
+
+    t = np.arange(10) * 1e-3
+    t[2], t[3] = t[3], t[2]
+    with pytest.raises(RecordError, match=r"\(t = 0\.003 s, 0\.002 s\)") as info:
+        Record(t=t, x=np.zeros(10))
+    assert "np." not in str(info.value)

@@ -103,7 +103,8 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
         i = int(nonpos[0])
         kind = "duplicated" if dt[i] == 0 else "decreasing"
         problem = (
-            f"time is {kind} at samples {i} and {i + 1} (t = {t[i]!r} s, {t[i + 1]!r} s) and "
+            f"time is {kind} at samples {i} and {i + 1} (t = {float(t[i])!r} s, "
+            f"{float(t[i + 1])!r} s) and "
             f"{nonpos.size} interval(s) in all are not positive; sort the samples by time and "
             "drop duplicated timestamps"
         )
