@@ -15,7 +15,7 @@ from driveid.commands.static import (
     static_stiffness_command,
     step_command,
 )
-from driveid.io import write_record
+from driveid.io import read_record, write_record
 from driveid.io.record import Record
 
 
@@ -184,6 +184,20 @@ def test_forced_and_envelope_commands(tmp_path):
     res = _run(forced_command, [*paths, "--json"])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["parameters"]["K"]["value"] == pytest.approx(K, rel=0.02)
+    fig_path = tmp_path / "forced.png"
+    res = _run(forced_command, [*paths, "--figure", str(fig_path)])
+    assert res.exit_code == 0, res.output
+    assert fig_path.stat().st_size > 0
+    # the figure's run markers are the measured dynamic stiffness, which for this exact linear
+    # response lies on the model K - Jω² and at C (2 % as the K check above)
+    from driveid.identify.forced import estimate_forced_response
+    from driveid.report.forced_figures import plot_forced
+
+    fig = plot_forced(estimate_forced_response([read_record(p) for p in paths]))
+    left, right = fig.axes
+    w = left.lines[0].get_xdata()
+    assert left.lines[0].get_ydata() == pytest.approx(K - J * w**2, rel=0.02, abs=0.02 * K)
+    assert right.lines[0].get_ydata() == pytest.approx(C, rel=0.02)
     decay = simulate_free_decay(OscillatorParams(J=1.0, K=16.0, c_mean=0.3, fk_mean=0.05),
                                 x0=10.0, duration=20.0, fs=1000.0)
     path = write_record(decay.record, tmp_path / "decay.csv")

@@ -76,6 +76,7 @@ _EXPORTS = {
     "estimate_wavelet": "driveid.identify.wavelet",
     "estimate_pho_campaign": "driveid.identify.pho",
     "estimate_forced_response": "driveid.identify.forced",
+    "estimate_forced_friction": "driveid.identify.forced_friction",
     "estimate_idim": "driveid.identify.idim",
     "estimate_friction_map": "driveid.identify.friction_map",
     "compare": "driveid.validate",

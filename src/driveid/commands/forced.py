@@ -18,16 +18,38 @@ __all__ = ["forced_command", "envelope_command"]
                    "(default: estimated from each run's force).")
 @click.option("--K", "K_known", type=float, default=None,
               help="Known stiffness K [N/m or N·m/rad].")
+@click.option("--friction/--no-friction", default=False, show_default=True,
+              help="Also fit asymmetric describing-function friction c_mean, c_delta, "
+                   "fk_mean, fk_delta (runs at several amplitudes: a frequency × amplitude "
+                   "grid).")
+@click.option("--x-ref", "x_ref", type=float, default=None,
+              help="Spring zero in the files' x [rad or m] (with --friction): needed for "
+                   "fk_delta when the drive has a spring.")
+@click.option("--pho", is_flag=True, default=False,
+              help="Runs under delayed PD feedback (forced PHO): P, D and the delay come "
+                   "from the files' metadata.")
 @record_options
 @output_options
 @clean_errors
-def forced_command(files, omega, K_known, record_opts, output_opts):
-    """J, C, K from steady sinusoidal runs without feedback (one FILE per frequency)."""
-    from driveid.identify.forced import estimate_forced_response
+def forced_command(files, omega, K_known, friction, x_ref, pho, record_opts, output_opts):
+    """J, C, K (and friction) from steady sinusoidal runs (one FILE per frequency/amplitude).
 
+    With --friction, parameters the runs do not determine (the asymmetry without a spring
+    or feedback, fk_delta without --x-ref on a spring) are shown as nan (JSON null) and
+    listed in the diagnostics under not_identified.
+    """
+    from driveid.identify.forced import estimate_forced_pho, estimate_forced_response
+
+    if x_ref is not None and not friction:
+        raise click.UsageError("--x-ref is used by the friction fit only; add --friction")
     records = record_opts.read_all(files)
     om = None if not omega else (omega[0] if len(omega) == 1 else list(omega))
-    est = estimate_forced_response(records, omega=om, K_known=K_known)
+    if pho:
+        est = estimate_forced_pho(records, omega=om, K_known=K_known, friction=friction,
+                                  x_ref=x_ref)
+    else:
+        est = estimate_forced_response(records, omega=om, K_known=K_known,
+                                       friction=friction, x_ref=x_ref)
     emit(est, output_opts, records=records, figure=lambda: plot_of(est, records),
          header=f"method: {est.method}   runs: {len(records)}")
 

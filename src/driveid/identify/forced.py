@@ -55,8 +55,8 @@ with the velocity: to first order it adds ``4 fk / (π ω A_2)`` to C (the descr
 function) and leaves J, K unbiased. On J = 0.02, C = 0.06, K = 8 (SI) driven with 0.5 N·m
 at 8-35 rad/s and fk = 0.005 N·m, each run matched the describing function within 1.04 %,
 the fitted C came out 1.4 % high (between the smallest and largest per-run term) and J, K
-within 1e-5. The estimate reports the harmonic content of the response
-(``response_distortion``) and warns when it exceeds 5 %.
+within 1e-5. The estimate warns when the response has over 5 % harmonics. ``friction=True``
+fits ``c_mean, c_delta, fk_mean, fk_delta`` (:mod:`driveid.identify.forced_friction`).
 
 References
 ----------
@@ -586,6 +586,8 @@ def estimate_forced_response(
     K_known: float | None = None,
     settle_tol: float = 1e-4,
     min_periods: int = 3,
+    friction: bool = False,
+    x_ref: float | None = None,
 ) -> Estimate:
     r"""J, C, K from steady sinusoidal runs without feedback (thesis §2.2.6, 2.176-2.179).
 
@@ -606,6 +608,13 @@ def estimate_forced_response(
         :func:`fit_sine_response`).
     min_periods : int
         Fewest steady periods per run [-]; >= 2.
+    friction : bool
+        True: also fit asymmetric describing-function friction (``c_mean`` becomes the
+        viscous part alone), see :mod:`driveid.identify.forced_friction`; needs several
+        velocity amplitudes ωA (a grid of frequencies × amplitudes).
+    x_ref : float, optional
+        Spring zero in the records' coordinates [rad or m] (with ``friction``): needed for
+        ``fk_delta`` when the drive has a spring; None: unknown.
 
     Returns
     -------
@@ -619,7 +628,9 @@ def estimate_forced_response(
         run residual over its |H|), ``n_records``, ``n_frequencies``,
         ``max_response_distortion``, ``max_input_distortion``. A warning is attached when
         the response has over 5 % harmonics, or when the runs disagree both statistically
-        (chi2/dof > 100) and materially (misfit > 0.1 % of |H|).
+        (chi2/dof > 100) and materially (misfit > 0.1 % of |H|). With ``friction``:
+        the fields of :func:`driveid.identify.forced_friction.estimate_forced_friction`
+        (adds ``fk_mean``, ``c_delta``, ``fk_delta``; NaN where not identified).
 
     Raises
     ------
@@ -655,6 +666,12 @@ def estimate_forced_response(
     """
     n = 1 if isinstance(records, Record) else len(records)
     zero = np.zeros(n)
+    if friction:
+        from driveid.identify.forced_friction import estimate_forced_friction
+
+        return estimate_forced_friction(
+            records, P=zero, D=zero, delay=0.0, omega=omega, K_known=K_known, x_ref=x_ref,
+            settle_tol=settle_tol, min_periods=min_periods, method="forced-response")
     return _estimate(records, omega, zero, zero, 0.0, K_known, settle_tol, min_periods,
                      "forced-response")
 
@@ -671,6 +688,8 @@ def estimate_forced_pho(
     delay_bounds: tuple[float, float] | None = None,
     settle_tol: float = 1e-4,
     min_periods: int = 3,
+    friction: bool = False,
+    x_ref: float | None = None,
 ) -> Estimate:
     r"""Physical J, C, K from sinusoidal runs under delayed PD feedback (forced PHO, 2.193).
 
@@ -703,13 +722,20 @@ def estimate_forced_pho(
         :func:`fit_sine_response`).
     min_periods : int
         Fewest steady periods per run [-]; >= 2.
+    friction : bool
+        True: also fit asymmetric describing-function friction (given delay only); the
+        mean force balance under P gives ``c_delta``, ``fk_delta``
+        (:mod:`driveid.identify.forced_friction`).
+    x_ref : float, optional
+        Spring zero [rad or m] (with ``friction`` and a spring); None: unknown.
 
     Returns
     -------
     Estimate
         Method ``"forced-pho"``: ``J``, ``c_mean``, ``K`` as in
         :func:`estimate_forced_response`, plus ``delay`` [s] (given: zero error);
-        ``data_used`` adds the gains ``P``, ``D``.
+        ``data_used`` adds the gains ``P``, ``D``. With ``friction`` also ``fk_mean``,
+        ``c_delta``, ``fk_delta``.
 
     Raises
     ------
@@ -757,5 +783,14 @@ def estimate_forced_pho(
         delay = float(delays[0])
     Pv = _per_record(P, "P", recs, "N·m/rad")
     Dv = _per_record(D, "D", recs, "N·m·s/rad")
+    if friction:
+        if isinstance(delay, str):
+            raise ParameterError('friction=True needs a given delay [s], not "estimate"; '
+                                 "estimate it first without friction or from free PHO runs")
+        from driveid.identify.forced_friction import estimate_forced_friction
+
+        return estimate_forced_friction(
+            recs, P=Pv, D=Dv, delay=delay, omega=omega, K_known=K_known, x_ref=x_ref,
+            settle_tol=settle_tol, min_periods=min_periods, method="forced-pho")
     return _estimate(recs, omega, Pv, Dv, delay, K_known, settle_tol, min_periods,
                      "forced-pho", delay_bounds)

@@ -8,7 +8,10 @@ Two estimators over records made by :mod:`driveid.experiment.excitation`:
 * :func:`estimate_describing_friction` — stepped-sine runs at several frequencies and
   amplitudes (the thesis's grid, ch. 4): J, K, viscous ``c_mean`` and Coulomb ``fk_mean``
   from the describing function, and the asymmetric parts ``fk_delta``, ``c_delta`` from the
-  mean (DC) force balance where the loop has a stiffness.
+  mean (DC) force balance where the loop has a stiffness (a wrapper of
+  :func:`driveid.identify.forced_friction.estimate_forced_friction`; the grid test of
+  friction and backlash amplitude dependence is
+  :func:`driveid.identify.forced_friction.sine_grid_test`).
 
 Model
 -----
@@ -36,8 +39,9 @@ On a sinusoidal motion of amplitude ``A`` that does not stick, Coulomb friction
 balance), so ``Im H - Im z = ωc + 4 fk_mean / (π A)``: linear in (c, fk_mean) over runs of
 different ``ωA``. The asymmetric terms ``c_delta |x'| + fk_delta`` have no fundamental but a
 mean ``c_delta (2/π) ω A + fk_delta``, balanced by the stiffness:
-``(K + P) x̄ = ū - fk_delta - (2/π) c_delta ω A`` (DC of (2.155)). This needs
-``K + P > 0``; otherwise the asymmetry is not identifiable from sinusoids and is omitted.
+``(K + P) x̄ = ū - fk_delta - (2/π) c_delta ω A`` (DC of (2.155), x measured from the
+spring zero). This needs ``K + P ≠ 0``; otherwise the asymmetry is not identifiable from
+sinusoids and is reported as not identified (NaN).
 
 References
 ----------
@@ -62,7 +66,6 @@ from scipy import signal as _sig
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify.estimate import Estimate, Parameter
-from driveid.identify.forced import fit_sine_response
 from driveid.io.record import Record
 
 __all__ = ["FrequencyResponse", "frequency_response", "estimate_frf",
@@ -339,9 +342,9 @@ def estimate_frf(record: Record, *, f_band: tuple[float, float] | None = None,
 
 def estimate_describing_friction(records: Sequence[Record], *, P: float | None = None,
                                  D: float | None = None, delay: float | None = None,
-                                 K_known: float | None = None,
+                                 K_known: float | None = None, x_ref: float | None = None,
                                  settle_tol: float = 1e-3) -> Estimate:
-    r"""J, K, c_mean, fk_mean (and fk_delta, c_delta) from stepped-sine runs.
+    r"""J, K, c_mean, fk_mean and the asymmetry c_delta, fk_delta from stepped-sine runs.
 
     Parameters
     ----------
@@ -349,22 +352,27 @@ def estimate_describing_friction(records: Sequence[Record], *, P: float | None =
         Sinusoidal runs (``u`` one sine each) at >= 2 frequencies and >= 2 amplitudes in
         all: a grid of frequencies × amplitudes (thesis ch. 4).
     P : float, optional
-        Proportional feedback gain [N·m/rad or N/m]; default ``meta["P"]`` or 0.
+        Proportional feedback gain [N·m/rad or N/m]; default each ``meta["P"]`` or 0.
     D : float, optional
-        Derivative feedback gain [N·m·s/rad or N·s/m]; default ``meta["D"]`` or 0.
+        Derivative feedback gain [N·m·s/rad or N·s/m]; default each ``meta["D"]`` or 0.
     delay : float, optional
         Feedback delay [s]; default ``meta["delay"]`` or 0.
     K_known : float, optional
         Known stiffness [N·m/rad or N/m] (0 for a free drive).
+    x_ref : float, optional
+        Spring zero [rad or m]; needed for ``fk_delta`` when K is fitted or non-zero.
     settle_tol : float
         Settling tolerance of :func:`driveid.identify.forced.fit_sine_response` [-].
 
     Returns
     -------
     Estimate
-        Method ``"describing-function"``: ``J``, ``K``, ``c_mean``, ``fk_mean`` and, when
-        ``K + P > 0``, ``fk_delta``, ``c_delta``; ``data_used`` per run: ``omega``,
-        ``displacement_amplitude``, ``equivalent_damping`` ``c + 4 fk/(π ω A)``.
+        Method ``"describing-function"``: ``J``, ``K``, ``c_mean``, ``fk_mean``,
+        ``c_delta``, ``fk_delta`` with standard errors and covariance (NaN where the data
+        do not determine them, see
+        :func:`driveid.identify.forced_friction.estimate_forced_friction`); ``data_used``
+        per run: ``omega``, ``displacement_amplitude``, ``equivalent_damping``
+        ``c + 4 fk/(π ω A)``, ….
 
     Raises
     ------
@@ -373,13 +381,11 @@ def estimate_describing_friction(records: Sequence[Record], *, P: float | None =
 
     Notes
     -----
-    Rows per run (module notes): ``K - Jω² = Re H - Re z`` and
-    ``ωc + (4/π) fk_mean / A = Im H - Im z``, ordinary LS with Birge-scaled covariance;
-    then ``ū - (K + P) x̄ = fk_delta + (2/π) c_delta ω A`` over the runs. The describing
-    function is first-order harmonic balance: exact for the fundamental of the friction
-    force on a sinusoidal velocity; the response harmonics make it approximate (about 1 %
-    in fk on the checks of ``tests/identify/test_frf.py``). Runs that stick are outside
-    the model.
+    A thin wrapper of :func:`driveid.identify.forced_friction.estimate_forced_friction`:
+    rows ``K - Jω² = Re H - Re z`` and ``ωc + (4/π) fk_mean / A = Im H - Im z``, then
+    ``ū - P x̄ - K (x̄ - x_ref) = fk_delta + (2/π) c_delta ω A`` over the runs, with the
+    error of K carried into the asymmetry by the delta method. The describing function is
+    first-order harmonic balance; runs that stick are outside the model.
 
     Examples
     --------
@@ -393,63 +399,12 @@ def estimate_describing_friction(records: Sequence[Record], *, P: float | None =
     >>> round(est.value("fk_mean"), 6), round(est.value("c_mean"), 6)
     (0.01, 0.06)
     """
+    from driveid.identify.forced_friction import estimate_forced_friction
+
     records = list(records)
     if len(records) < 3 or not all(isinstance(r, Record) for r in records):
         raise IdentificationError(
             f"describing-function friction needs >= 3 sinusoidal runs; got {len(records)}")
-    P, D, delay = _feedback(records[0], P, D, delay)
-    fits = [fit_sine_response(r, settle_tol=settle_tol) for r in records]
-    w = np.array([f.omega for f in fits])
-    amp = np.array([abs(f.displacement) for f in fits])
-    H = np.array([f.stiffness for f in fits])
-    z = (P + 1j * w * D) * np.exp(-1j * w * delay)
-    wa = w * amp
-    if np.ptp(wa) < 0.05 * wa.mean() or np.ptp(w) == 0:
-        raise IdentificationError(
-            "the runs do not separate viscous from Coulomb friction: they need different "
-            f"frequencies and velocity amplitudes ωA; got ωA = {np.round(wa, 6).tolist()}")
-    u_ = _units(records[0])
-    # in-phase rows: J, K
-    if K_known is None:
-        A_re = np.column_stack([-(w**2), np.ones_like(w)])
-        th_re, cov_re, *_ = _weighted_fit(A_re, H.real - z.real, None)
-        J, K = th_re
-        se_J, se_K = np.sqrt(np.diag(cov_re))
-    else:
-        th_re, cov_re, *_ = _weighted_fit(-(w**2)[:, None], H.real - z.real - K_known,
-                                          None)
-        J, K, se_J, se_K = th_re[0], float(K_known), math.sqrt(cov_re[0, 0]), math.nan
-    A_im = np.column_stack([w, 4.0 / (np.pi * amp)])
-    th_im, cov_im, *_ = _weighted_fit(A_im, H.imag - z.imag, None)
-    params = {
-        "J": Parameter(float(J), float(se_J), u_["J"]),
-        "K": Parameter(float(K), float(se_K), u_["K"], fixed=K_known is not None),
-        "c_mean": Parameter(float(th_im[0]), float(math.sqrt(cov_im[0, 0])), u_["c"]),
-        "fk_mean": Parameter(float(th_im[1]), float(math.sqrt(cov_im[1, 1])), u_["f"]),
-    }
-    warnings = []
-    stiff = K + P
-    if stiff > 0:
-        means = []
-        for rec, fit in zip(records, fits, strict=True):
-            sel = (rec.t >= fit.t_start) & (rec.t < fit.t_stop)
-            means.append((float(np.mean(rec.u[sel])), float(np.mean(rec.x[sel]))))
-        ubar, xbar = np.array(means).T
-        A_dc = np.column_stack([np.ones_like(w), 2.0 / np.pi * wa])
-        th_dc, cov_dc, *_ = _weighted_fit(A_dc, ubar - stiff * xbar, None)
-        params["fk_delta"] = Parameter(float(th_dc[0]), float(math.sqrt(cov_dc[0, 0])),
-                                       u_["f"])
-        params["c_delta"] = Parameter(float(th_dc[1]), float(math.sqrt(cov_dc[1, 1])),
-                                      u_["c"])
-    else:
-        warnings.append("no stiffness (K + P <= 0): the asymmetry fk_delta, c_delta is not "
-                        "identifiable from the mean force balance and is not reported")
-    return Estimate(
-        method="describing-function", params=params,
-        data_used={"omega": w, "displacement_amplitude": amp,
-                   "equivalent_damping": (H.imag - z.imag) / w},
-        diagnostics={"n_records": len(records),
-                     "max_response_distortion": float(max(f.response_distortion
-                                                          for f in fits))},
-        warnings=tuple(warnings),
-    )
+    return estimate_forced_friction(records, P=P, D=D, delay=delay, K_known=K_known,
+                                    x_ref=x_ref, settle_tol=settle_tol,
+                                    method="describing-function")

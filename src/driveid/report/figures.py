@@ -56,6 +56,10 @@ def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
         from driveid.report.friction_figures import plot_idim
 
         return plot_idim(estimate)
+    if method in ("forced-response", "forced-pho", "forced-friction", "describing-function"):
+        from driveid.report.forced_figures import plot_forced
+
+        return plot_forced(estimate)
     raise NotImplementedError(
         f"no figure for method {method!r}; friction maps are drawn by "
         "driveid.report.friction_figures.plot_friction_map(result)"
