@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
 from driveid.commands import clean_errors
@@ -14,6 +16,23 @@ _FILE = click.argument("file", metavar="FILE[@T0:T1]")
 _CHECK = click.option("--check-window", is_flag=True,
                       help="Refit without the last 20 % of the window and warn when a "
                            "parameter moves by more than 3 standard errors.")
+
+
+_BACKBONE = click.option(
+    "--backbone-figure", "backbone_figure", default=None,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the backbone K_eff(A) = J ω0(A)² with its ±2 s.e. band, fit K0 + K2 A² and "
+         "verdict (PNG, PDF or SVG; --overwrite replaces a file).")
+
+
+def _write_backbone(est, record, path, output_opts):
+    """Write the backbone figure to ``path`` when asked."""
+    if path is None:
+        return
+    from driveid.report.figures import save_figure
+    from driveid.report.instantaneous_figures import plot_backbone
+
+    save_figure(plot_backbone(est, record=record), path, overwrite=output_opts.overwrite)
 
 
 def _checked(est, fit, record, check_window):
@@ -32,13 +51,16 @@ def _checked(est, fit, record, check_window):
 @click.option("--mass", "--J", "mass", type=float, default=None,
               help="Known mass or inertia J [kg or kg·m²] (FORCEVIB estimates it if omitted).")
 @_CHECK
+@_BACKBONE
 @record_options
 @output_options
 @clean_errors
-def hilbert_command(file, mass, check_window, record_opts, output_opts):
+def hilbert_command(file, mass, check_window, backbone_figure, record_opts, output_opts):
     """Instantaneous ω0(t), ζ(t), backbone and damping curve by the Hilbert transform.
 
-    --json --series adds the time series t, omega0, zeta, amplitude under "data_used".
+    --json gives the backbone fit K_eff = K0 + K2 A² and its verdict (hardening, softening,
+    constant) under data_used.backbone_fit; --json --series adds the time series t,
+    omega0, zeta, amplitude and the binned backbone under "data_used".
     """
     from driveid.identify.hilbert import estimate_hilbert
 
@@ -52,8 +74,10 @@ def hilbert_command(file, mass, check_window, record_opts, output_opts):
         return plot_hilbert(est, record=record)
 
     w0, w1 = est.data_used["window"]
-    emit(est, output_opts, records=[record], figure=figure,
-         header=f"method: {est.method}   valid window: {w0:.4g}-{w1:.4g} s")
+    est = emit(est, output_opts, records=[record], figure=figure,
+               header=f"method: {est.method}   valid window: {w0:.4g}-{w1:.4g} s   "
+                      f"backbone: {est.data_used['backbone_fit']['verdict']}")
+    _write_backbone(est, record, backbone_figure, output_opts)
 
 
 @click.command("wavelet")
@@ -62,21 +86,28 @@ def hilbert_command(file, mass, check_window, record_opts, output_opts):
               help="Number of modes to identify.")
 @click.option("--omega-c", type=float, default=None,
               help="Wavelet centre frequency [-] (default: chosen from the mode spacing).")
+@click.option("--mass", "--J", "mass", type=float, default=None,
+              help="Inertia J [kg or kg·m²] of the mode, to give the backbone as a stiffness "
+                   "K_eff = J ω0² (per unit inertia without it).")
 @_CHECK
+@_BACKBONE
 @record_options
 @output_options
 @clean_errors
-def wavelet_command(file, modes, omega_c, check_window, record_opts, output_opts):
+def wavelet_command(file, modes, omega_c, mass, check_window, backbone_figure, record_opts,
+                    output_opts):
     """Modal ω0 and ζ of a free decay by the Morlet wavelet transform (one or more modes).
 
-    With several modes the parameters are omega0_1, zeta_1, omega0_2 ...; --json --series
-    adds each mode's time series under "data_used".
+    With several modes the parameters are omega0_1, zeta_1, omega0_2 ...; --json gives each
+    mode's backbone fit and verdict (data_used.backbone_fit for one mode, diagnostics
+    backbone_verdict_k for several); --json --series adds each mode's time series under
+    "data_used". --backbone-figure draws the first mode's backbone.
     """
     from driveid.identify.wavelet import estimate_wavelet
 
     record = record_opts.read(file).resampled_uniform(purpose="the wavelet transform")
     def fit(rec):
-        return estimate_wavelet(rec, modes=modes, omega_c=omega_c)
+        return estimate_wavelet(rec, modes=modes, omega_c=omega_c, mass=mass)
 
     est = _checked(fit(record), fit, record, check_window)
 
@@ -87,5 +118,7 @@ def wavelet_command(file, modes, omega_c, check_window, record_opts, output_opts
 
     windows = "; ".join(f"mode {k}: valid window {m['window'][0]:.4g}-{m['window'][1]:.4g} s"
                         for k, m in enumerate(est.data_used["modes"], start=1))
-    emit(est, output_opts, records=[record], figure=figure,
-         header=f"method: {est.method}   omega_c: {est.data_used['omega_c']:.3g}   {windows}")
+    est = emit(est, output_opts, records=[record], figure=figure,
+               header=f"method: {est.method}   omega_c: {est.data_used['omega_c']:.3g}   "
+                      f"{windows}")
+    _write_backbone(est, record, backbone_figure, output_opts)

@@ -223,3 +223,127 @@ def friction_from_envelope(source: Any, *, mass: float | None = None,
                      "source": source.method if isinstance(source, Estimate) else "arrays"},
         warnings=tuple(warnings),
     )
+
+
+# Phasor-model helpers of driveid.identify.hilbert.estimate_envelope_damping (moved here
+# to keep hilbert.py small; same subject: friction from the envelope).
+
+_RIPPLE_HARMONICS = (-1, 1)
+
+
+def _limit_cycle_phasor(sigma: float, omega0: float, n: int = 4096) -> complex:
+    """Cycle phasor of the friction limit cycle per unit ``d = fk/K`` (symmetric damping).
+
+    Between two velocity reversals the motion is a damped cosine about the centre
+    ``-d sgn(v)``; the reversals are a fixed half period ``pi/omega_d`` apart whatever the
+    amplitude, so a free decay is ``x = x_p(t) + exp(-sigma t) P(t)`` with ``x_p`` and ``P``
+    of period ``T = 2 pi/omega_d``: ``x_p`` the (virtual) periodic solution of the friction
+    forcing, ``exp(-sigma t) P`` the homogeneous part. Returns twice the fundamental Fourier
+    coefficient of ``x_p`` (what :func:`~driveid.signal.envelope.cycle_phasor` gives for it)
+    with the phase of the fundamental of ``P`` removed, for ``d = 1``.
+    """
+    wd = math.sqrt(omega0**2 - sigma**2)
+    half = math.pi / wd
+    tau = (np.arange(n) + 0.5) * half / n
+    shape = np.exp(-sigma * tau) * (np.cos(wd * tau) + sigma / wd * np.sin(wd * tau))
+    rho = math.exp(-sigma * half)
+    # half cycle with v > 0 from the minimum m0 about the centre -d; the limit cycle is
+    # half-wave symmetric, x(t + T/2) = -x(t), with m0 = d (1 + rho) / (1 - rho)
+    xp = -1.0 + (1 + rho) / (1 - rho) * shape + shape
+    hom = -shape * np.exp(sigma * tau)
+    kernel = np.exp(-1j * wd * tau)
+    # half-wave symmetry: the fundamental over a period is twice that over a half period
+    xp1, hom1 = np.mean(xp * kernel), np.mean(hom * kernel)
+    return complex(2 * xp1 * np.conj(hom1) / abs(hom1))
+
+
+#: Fewest periods in the window for fitting the non-decaying ripple terms [-].
+_DRIFT_RIPPLE_PERIODS = 4.0
+
+
+def _phasor_basis(kind: str, s: float, tw: np.ndarray, omega: float,
+                  drift: bool) -> np.ndarray:
+    """Columns of the complex envelope models (see :func:`estimate_envelope_damping`)."""
+    ones = np.ones_like(tw)
+    decay = ones if kind == "coulomb" else np.exp(-s * tw)
+    cols = {"viscous": [decay], "coulomb": [ones, tw], "combined": [ones, decay]}[kind]
+    cols = cols + [decay * np.exp(1j * m * omega * tw) for m in _RIPPLE_HARMONICS]
+    if drift and kind != "coulomb":
+        cols = cols + [np.exp(1j * m * omega * tw) for m in _RIPPLE_HARMONICS]
+    return np.column_stack(cols).astype(complex)
+
+
+def _fit_phasor(kind: str, tw: np.ndarray, y: np.ndarray, omega: float,
+                sigma0: float, drift: bool) -> dict[str, Any]:
+    """Fit ``Y = exp(j dw t) B(sigma) c``: variable projection over (sigma, dw)."""
+    def unpack(q: np.ndarray) -> tuple[float, float]:
+        return (0.0, float(q[0])) if kind == "coulomb" else (float(q[0]), float(q[1]))
+
+    def project(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        s, dw = unpack(q)
+        yr = y * np.exp(-1j * dw * tw)
+        basis = _phasor_basis(kind, s, tw, omega, drift)
+        coef = np.linalg.lstsq(basis, yr, rcond=None)[0]
+        return yr - basis @ coef, coef
+
+    def residual(q: np.ndarray) -> np.ndarray:
+        r = project(q)[0]
+        return np.concatenate([r.real, r.imag])
+
+    span = float(tw[-1])
+    dw_scale = 0.1 / span
+    if kind == "coulomb":
+        starts, lower, scale = [[0.0]], [-np.inf], [dw_scale]
+    else:
+        starts = [[k * sigma0, 0.0] for k in (0.3, 1.0, 3.0)]
+        # below ~1e-3 / span the decay is a straight line: the Coulomb model
+        lower, scale = [1e-3 / span, -np.inf], [sigma0, dw_scale]
+    best = None
+    for q0 in starts:
+        q0 = np.maximum(q0, np.array(lower) * (1 + 1e-9))
+        fit = least_squares(residual, q0, bounds=(lower, np.inf), x_scale=scale)
+        if best is None or fit.cost < best.cost:
+            best = fit
+    s, dw = unpack(best.x)
+    r, coef = project(best.x)
+    # full Jacobian of the real-stacked residual in (nonlinear..., Re c, Im c)
+    rot = np.exp(1j * dw * tw)
+    basis = _phasor_basis(kind, s, tw, omega, drift)
+    model = rot * (basis @ coef)
+    cols = []
+    if kind != "coulomb":
+        dbasis = -tw[:, None] * basis
+        if kind == "combined":
+            dbasis[:, 0] = 0.0
+        if drift:
+            dbasis[:, -len(_RIPPLE_HARMONICS):] = 0.0  # the non-decaying ripple terms
+        cols.append(rot * (dbasis @ coef))
+    cols.append(1j * tw * model)
+    for k in range(coef.size):
+        cols += [rot * basis[:, k], 1j * rot * basis[:, k]]
+    jac = np.column_stack(cols)
+    jac = np.vstack([jac.real, jac.imag])
+    return {"sigma": s, "dw": dw, "coef": coef, "rss": float(np.vdot(r, r).real),
+            "jac": jac, "model": model,
+            "p": np.concatenate([[s] if kind != "coulomb" else [], [dw],
+                                 np.column_stack([coef.real, coef.imag]).ravel()])}
+
+
+def _crossings(x: np.ndarray, t: np.ndarray, band: float) -> tuple[float, float]:
+    """Time of the last crossing of the midline beyond ``±band`` [s] and the frequency.
+
+    The frequency [rad/s] counts whole cycles between crossings: asymmetric friction
+    offsets the centre every half cycle, so half-cycle intervals alternate but cycles don't.
+    """
+    state = np.where(x > band, 1, np.where(x < -band, -1, 0))
+    idx = np.flatnonzero(state)
+    crossings = idx[1:][np.diff(state[idx]) != 0]
+    if crossings.size < 3:
+        raise IdentificationError(
+            "the record does not oscillate enough for envelope damping separation: it needs "
+            f"at least 3 crossings of the midline beyond ±{band:.3g} (1 % of the peak or 5x "
+            f"noise); record a longer free decay; got {crossings.size}"
+        )
+    tc = t[crossings]
+    n_cycles = (tc.size - 1) // 2
+    return float(tc[-1]), 2 * np.pi * n_cycles / float(tc[2 * n_cycles] - tc[0])

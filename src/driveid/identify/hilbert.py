@@ -60,15 +60,23 @@ from typing import Any
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
-from scipy.optimize import least_squares
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify._plausibility import plausibility_checked
+from driveid.identify.backbone import backbone_entries
+from driveid.identify.envelope_friction import (
+    _DRIFT_RIPPLE_PERIODS,
+    _crossings,
+    _fit_phasor,
+    _limit_cycle_phasor,
+)
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record, needs_uniform_sampling
 from driveid.signal._blas import with_one_blas_thread
 from driveid.signal.envelope import (
     analytic_signal,
+    block_decimate,
+    block_decimation,
     count_crossings,
     cycle_phasor,
     dominant_frequency,
@@ -134,6 +142,7 @@ class _Instantaneous:
     forced: bool
     osc: Oscillation
     ripple_max: float
+    decimation: int
 
 
 def check_oscillation(record: Record, *, min_snr: float) -> Oscillation:
@@ -169,7 +178,7 @@ def check_oscillation(record: Record, *, min_snr: float) -> Oscillation:
         # the record mean is biased by a decay; the median of the one-period moving
         # average (the midline) is not, to first order
         period_n = max(int(round(2 * np.pi / omega_guess * record.fs)), 1)
-        x = x - float(np.median(uniform_filter1d(x, period_n, mode="nearest")))
+        x -= float(np.median(uniform_filter1d(x, period_n, mode="nearest")))
     noise = noise_std(x)
     peak = float(np.max(np.abs(x)))
     if peak == 0.0:
@@ -225,9 +234,14 @@ def _instantaneous(
     _check_options(mass, smoothing_periods=smoothing_periods, trim_periods=trim_periods,
                    ripple_threshold=ripple_threshold, min_snr=min_snr)
     osc = check_oscillation(record, min_snr=min_snr)
-    fs = record.fs
+    q = block_decimation(record.fs, osc.omega)
+    if q > 1:  # oversampled: boxcar-decimate to >= 500 samples per period (memory, time)
+        x, t, fs = block_decimate(osc.x, q), block_decimate(record.t, q), record.fs / q
+        u = None if record.u is None else block_decimate(record.u, q)
+    else:
+        x, t, fs, u = osc.x, record.t, record.fs, record.u
     period = 2 * np.pi / osc.omega
-    z = analytic_signal(osc.x, fs, omega=osc.omega)
+    z = analytic_signal(x, fs, omega=osc.omega)
     amplitude = np.abs(z)
     if np.any(amplitude <= 0):
         raise IdentificationError("the envelope reaches zero; the record holds no oscillation "
@@ -241,20 +255,19 @@ def _instantaneous(
     phase, omega, domega = smooth_derivatives(
         _period_mean(np.unwrap(np.angle(z)), boxcar), fs, window)
     sigma, dsigma = -dlna, -d2lna
-    use_force = record.u is not None and np.any(record.u != 0) if forced is None else forced
-    if use_force and record.u is None:
+    use_force = u is not None and np.any(u != 0) if forced is None else forced
+    if use_force and u is None:
         raise RecordError("forced=True needs a force column 'u' in the record; got none")
     with np.errstate(divide="ignore", invalid="ignore"):
         free_part = omega**2 + sigma**2 + dsigma - sigma * domega / omega
     if use_force:
-        ua = analytic_signal(record.u - np.mean(record.u), fs, omega=osc.omega)
+        ua = analytic_signal(u - np.mean(u), fs, omega=osc.omega)
         ratio = ua / z
         alpha = smooth_derivatives(ratio.real, fs, window)[0]
         beta = smooth_derivatives(ratio.imag, fs, window)[0]
         force_part = alpha + sigma * beta / omega
     amp_smooth = np.exp(lna)
     ripple = uniform_filter1d(np.abs(amplitude / amp_smooth - 1.0), max(window, 1))
-    t = record.t
     trim = trim_periods * period
     mask = (
         (t >= t[0] + trim) & (t <= t[-1] - trim) & (ripple < ripple_threshold)
@@ -282,7 +295,7 @@ def _instantaneous(
     return _Instantaneous(
         i0=i0, i1=i1, t=t[sl], amplitude=amp_smooth[sl], omega=omega[sl], sigma=sigma[sl],
         omega0=omega0[sl], h=h[sl], phase=phase[sl], mass=J, forced=bool(use_force), osc=osc,
-        ripple_max=float(np.max(ripple[sl])),
+        ripple_max=float(np.max(ripple[sl])), decimation=q,
     )
 
 
@@ -367,8 +380,11 @@ def estimate_hilbert(
         \sqrt{\omega_d^2+\sigma^2}`, :math:`\zeta = \sigma/\omega_0` (2.143, 2.150); forced:
         medians of the instantaneous values (and ``J`` when estimated). ``data_used`` holds
         ``t``, ``omega0``, ``zeta``, ``amplitude``, ``omega``, ``sigma``, ``backbone``
-        (amplitude, omega0), ``damping_curve`` (amplitude, damping force ``2 J h omega A``)
-        and ``window`` [s].
+        (binned ``omega0(A)`` and ``K_eff(A) = J omega0²`` with standard errors,
+        :meth:`driveid.identify.backbone.Backbone.to_dict`, or None for too short a
+        window), ``backbone_fit`` (``K_eff = K0 + K2 A²``, p-value, verdict
+        hardening/softening/constant; :mod:`driveid.identify.backbone`),
+        ``damping_curve`` (amplitude, damping force ``2 J h omega A``) and ``window`` [s].
 
     Raises
     ------
@@ -385,6 +401,11 @@ def estimate_hilbert(
     de Marchi (1998), are in the module docstring. The valid window drops ``trim_periods``
     at each end, samples whose envelope ripple exceeds ``ripple_threshold``, and samples whose
     envelope is below ``min_snr`` times the noise; the longest remaining run is used.
+    A record with more than 1000 samples per period is first averaged in blocks of ``q``
+    samples down to >= 500 per period (:func:`driveid.signal.envelope.block_decimate`,
+    boxcar anti-alias filter, gain ``1 - 7e-6`` at the mode; ``diagnostics["decimation"]``
+    = q): the series in ``data_used`` are then at ``fs / q`` and ``window_index`` counts
+    decimated samples. This bounds memory and time on long records (issue 12).
 
     Examples
     --------
@@ -419,10 +440,13 @@ def estimate_hilbert(
         params["zeta"] = Parameter(sigma / w0, s_err / w0, "-")
     J = inst.mass if math.isfinite(inst.mass) else 1.0
     damping_force = 2.0 * J * inst.h * inst.omega * inst.amplitude
+    curve, fit = backbone_entries(
+        inst.t, inst.amplitude, inst.omega0,
+        mass=inst.mass if math.isfinite(inst.mass) else None,
+        units=(record.units["x"], record.units["u"]))
     data_used: dict[str, Any] = {
         "t": inst.t, "omega0": inst.omega0, "zeta": zeta_t, "amplitude": inst.amplitude,
-        "omega": inst.omega, "sigma": inst.sigma,
-        "backbone": {"amplitude": inst.amplitude, "omega0": inst.omega0},
+        "omega": inst.omega, "sigma": inst.sigma, "backbone": curve, "backbone_fit": fit,
         "damping_curve": {"amplitude": inst.amplitude, "force": damping_force,
                           "mass_normalised": not math.isfinite(inst.mass)},
         "window": (float(inst.t[0]), float(inst.t[-1])),
@@ -431,131 +455,11 @@ def estimate_hilbert(
     diagnostics = {
         "window_start": float(inst.t[0]), "window_stop": float(inst.t[-1]),
         "n_window": int(inst.i1 - inst.i0), "noise_std": inst.osc.noise, "snr": inst.osc.snr,
-        "ripple_max": inst.ripple_max, "forced": inst.forced,
+        "ripple_max": inst.ripple_max, "forced": inst.forced, "decimation": inst.decimation,
+        "backbone_verdict": fit["verdict"], "backbone_p_value": fit.get("p_value", math.nan),
     }
     return Estimate(method="hilbert-forcevib" if inst.forced else "hilbert-freevib",
                     params=params, data_used=data_used, diagnostics=diagnostics)
-
-
-_RIPPLE_HARMONICS = (-1, 1)
-
-
-def _limit_cycle_phasor(sigma: float, omega0: float, n: int = 4096) -> complex:
-    """Cycle phasor of the friction limit cycle per unit ``d = fk/K`` (symmetric damping).
-
-    Between two velocity reversals the motion is a damped cosine about the centre
-    ``-d sgn(v)``; the reversals are a fixed half period ``pi/omega_d`` apart whatever the
-    amplitude, so a free decay is ``x = x_p(t) + exp(-sigma t) P(t)`` with ``x_p`` and ``P``
-    of period ``T = 2 pi/omega_d``: ``x_p`` the (virtual) periodic solution of the friction
-    forcing, ``exp(-sigma t) P`` the homogeneous part. Returns twice the fundamental Fourier
-    coefficient of ``x_p`` (what :func:`~driveid.signal.envelope.cycle_phasor` gives for it)
-    with the phase of the fundamental of ``P`` removed, for ``d = 1``.
-    """
-    wd = math.sqrt(omega0**2 - sigma**2)
-    half = math.pi / wd
-    tau = (np.arange(n) + 0.5) * half / n
-    shape = np.exp(-sigma * tau) * (np.cos(wd * tau) + sigma / wd * np.sin(wd * tau))
-    rho = math.exp(-sigma * half)
-    # half cycle with v > 0 from the minimum m0 about the centre -d; the limit cycle is
-    # half-wave symmetric, x(t + T/2) = -x(t), with m0 = d (1 + rho) / (1 - rho)
-    xp = -1.0 + (1 + rho) / (1 - rho) * shape + shape
-    hom = -shape * np.exp(sigma * tau)
-    kernel = np.exp(-1j * wd * tau)
-    # half-wave symmetry: the fundamental over a period is twice that over a half period
-    xp1, hom1 = np.mean(xp * kernel), np.mean(hom * kernel)
-    return complex(2 * xp1 * np.conj(hom1) / abs(hom1))
-
-
-#: Fewest periods in the window for fitting the non-decaying ripple terms [-].
-_DRIFT_RIPPLE_PERIODS = 4.0
-
-
-def _phasor_basis(kind: str, s: float, tw: np.ndarray, omega: float,
-                  drift: bool) -> np.ndarray:
-    """Columns of the complex envelope models (see :func:`estimate_envelope_damping`)."""
-    ones = np.ones_like(tw)
-    decay = ones if kind == "coulomb" else np.exp(-s * tw)
-    cols = {"viscous": [decay], "coulomb": [ones, tw], "combined": [ones, decay]}[kind]
-    cols = cols + [decay * np.exp(1j * m * omega * tw) for m in _RIPPLE_HARMONICS]
-    if drift and kind != "coulomb":
-        cols = cols + [np.exp(1j * m * omega * tw) for m in _RIPPLE_HARMONICS]
-    return np.column_stack(cols).astype(complex)
-
-
-def _fit_phasor(kind: str, tw: np.ndarray, y: np.ndarray, omega: float,
-                sigma0: float, drift: bool) -> dict[str, Any]:
-    """Fit ``Y = exp(j dw t) B(sigma) c``: variable projection over (sigma, dw)."""
-    def unpack(q: np.ndarray) -> tuple[float, float]:
-        return (0.0, float(q[0])) if kind == "coulomb" else (float(q[0]), float(q[1]))
-
-    def project(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        s, dw = unpack(q)
-        yr = y * np.exp(-1j * dw * tw)
-        basis = _phasor_basis(kind, s, tw, omega, drift)
-        coef = np.linalg.lstsq(basis, yr, rcond=None)[0]
-        return yr - basis @ coef, coef
-
-    def residual(q: np.ndarray) -> np.ndarray:
-        r = project(q)[0]
-        return np.concatenate([r.real, r.imag])
-
-    span = float(tw[-1])
-    dw_scale = 0.1 / span
-    if kind == "coulomb":
-        starts, lower, scale = [[0.0]], [-np.inf], [dw_scale]
-    else:
-        starts = [[k * sigma0, 0.0] for k in (0.3, 1.0, 3.0)]
-        # below ~1e-3 / span the decay is a straight line: the Coulomb model
-        lower, scale = [1e-3 / span, -np.inf], [sigma0, dw_scale]
-    best = None
-    for q0 in starts:
-        q0 = np.maximum(q0, np.array(lower) * (1 + 1e-9))
-        fit = least_squares(residual, q0, bounds=(lower, np.inf), x_scale=scale)
-        if best is None or fit.cost < best.cost:
-            best = fit
-    s, dw = unpack(best.x)
-    r, coef = project(best.x)
-    # full Jacobian of the real-stacked residual in (nonlinear..., Re c, Im c)
-    rot = np.exp(1j * dw * tw)
-    basis = _phasor_basis(kind, s, tw, omega, drift)
-    model = rot * (basis @ coef)
-    cols = []
-    if kind != "coulomb":
-        dbasis = -tw[:, None] * basis
-        if kind == "combined":
-            dbasis[:, 0] = 0.0
-        if drift:
-            dbasis[:, -len(_RIPPLE_HARMONICS):] = 0.0  # the non-decaying ripple terms
-        cols.append(rot * (dbasis @ coef))
-    cols.append(1j * tw * model)
-    for k in range(coef.size):
-        cols += [rot * basis[:, k], 1j * rot * basis[:, k]]
-    jac = np.column_stack(cols)
-    jac = np.vstack([jac.real, jac.imag])
-    return {"sigma": s, "dw": dw, "coef": coef, "rss": float(np.vdot(r, r).real),
-            "jac": jac, "model": model,
-            "p": np.concatenate([[s] if kind != "coulomb" else [], [dw],
-                                 np.column_stack([coef.real, coef.imag]).ravel()])}
-
-
-def _crossings(x: np.ndarray, t: np.ndarray, band: float) -> tuple[float, float]:
-    """Time of the last crossing of the midline beyond ``±band`` [s] and the frequency.
-
-    The frequency [rad/s] counts whole cycles between crossings: asymmetric friction
-    offsets the centre every half cycle, so half-cycle intervals alternate but cycles don't.
-    """
-    state = np.where(x > band, 1, np.where(x < -band, -1, 0))
-    idx = np.flatnonzero(state)
-    crossings = idx[1:][np.diff(state[idx]) != 0]
-    if crossings.size < 3:
-        raise IdentificationError(
-            "the record does not oscillate enough for envelope damping separation: it needs "
-            f"at least 3 crossings of the midline beyond ±{band:.3g} (1 % of the peak or 5x "
-            f"noise); record a longer free decay; got {crossings.size}"
-        )
-    tc = t[crossings]
-    n_cycles = (tc.size - 1) // 2
-    return float(tc[-1]), 2 * np.pi * n_cycles / float(tc[2 * n_cycles] - tc[0])
 
 
 @plausibility_checked

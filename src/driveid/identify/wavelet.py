@@ -66,11 +66,19 @@ from scipy.signal import find_peaks
 
 from driveid.errors import IdentificationError, ParameterError
 from driveid.identify._plausibility import plausibility_checked
+from driveid.identify.backbone import backbone_entries
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.hilbert import check_oscillation
 from driveid.io.record import Record, needs_uniform_sampling
 from driveid.signal._blas import with_one_blas_thread
-from driveid.signal.envelope import longest_run, smooth_derivatives, weighted_slope
+from driveid.signal.envelope import (
+    block_decimate,
+    block_decimation,
+    block_mean_gain,
+    longest_run,
+    smooth_derivatives,
+    weighted_slope,
+)
 
 __all__ = ["morlet_transform", "estimate_wavelet", "scalogram", "MIN_PEAK_RATIO", "MAX_OMEGA_C"]
 
@@ -222,6 +230,7 @@ def estimate_wavelet(
     min_snr: float = 10.0,
     iterations: int = 2,
     n_scales: int = 60,
+    mass: float | None = None,
 ) -> Estimate:
     r"""Modal frequency and damping of a free decay by the Morlet wavelet transform.
 
@@ -242,6 +251,9 @@ def estimate_wavelet(
         Dilation-tuning iterations (2.246) [-].
     n_scales : int
         Number of analysis frequencies of the scalogram (for ridges and figures) [-].
+    mass : float, optional
+        Inertia or mass J [kg·m² or kg] of the mode, only to express the backbone as a
+        stiffness ``K_eff = J omega0²``; without it the stiffness is per unit inertia.
 
     Returns
     -------
@@ -249,8 +261,11 @@ def estimate_wavelet(
         For one mode ``omega0`` [rad/s] and ``zeta`` [-]; for several ``omega0_1``,
         ``zeta_1``, ``omega0_2`` ... in increasing frequency. ``data_used["modes"]`` is a list
         of dicts with ``t``, ``omega0``, ``zeta``, ``omega_d``, ``sigma``, ``amplitude``,
-        ``window`` [s], ``dilation`` [s], ``ridge`` (scalogram ridge frequency [rad/s]);
+        ``window`` [s], ``dilation`` [s], ``ridge`` (scalogram ridge frequency [rad/s]),
+        ``backbone`` and ``backbone_fit`` (binned ``omega0(A)``, ``K_eff(A)``, fit
+        ``K0 + K2 A²`` and verdict; :mod:`driveid.identify.backbone`);
         ``data_used["scalogram"]`` holds ``omegas`` and ``amplitude`` (decimated in time).
+        For one mode the mode's entries are also at the top level of ``data_used``.
 
     Raises
     ------
@@ -268,6 +283,11 @@ def estimate_wavelet(
     (:math:`\omega_d`) and a weighted fit of :math:`\ln|W|` (:math:`\sigma`, weights
     :math:`|W|^2`) over the valid window; the instantaneous series use Savitzky-Golay
     derivatives over one period. See the module docstring for the equations and errata.
+    A record with more than 1000 samples per period of the dominant mode is first averaged
+    in blocks of ``q`` samples down to >= 500 per period
+    (:func:`driveid.signal.envelope.block_decimate`; ``diagnostics["decimation"]`` = q),
+    and each mode's amplitude is divided by the block mean's gain at its frequency; modes
+    above ~25 times the dominant frequency would then have < 20 samples per period.
 
     Examples
     --------
@@ -286,10 +306,20 @@ def estimate_wavelet(
     for name, value in (("coi_factor", coi_factor), ("min_snr", min_snr)):
         if not (math.isfinite(value) and value > 0):
             raise ParameterError(f"{name} must be positive and finite; got {value!r}")
+    if mass is not None and not (math.isfinite(mass) and mass > 0):
+        raise ParameterError(
+            f"mass must be a positive inertia [kg·m² or kg] or None; got {mass!r}")
     if int(iterations) != iterations or iterations < 1:
         raise ParameterError(f"iterations must be a positive integer; got {iterations!r}")
     osc = check_oscillation(record, min_snr=min_snr)
-    fs, t, x = record.fs, record.t, osc.x
+    # oversampled records are boxcar-decimated to >= 500 samples per period of the
+    # dominant mode (memory and time); white noise keeps its density, std / sqrt(q)
+    q = block_decimation(record.fs, osc.omega)
+    if q > 1:
+        fs, t, x = record.fs / q, block_decimate(record.t, q), block_decimate(osc.x, q)
+    else:
+        fs, t, x = record.fs, record.t, osc.x
+    noise = osc.noise / math.sqrt(q)
     omega_min = 2 * np.pi * 2.0 / record.duration
     omegas = _mode_frequencies(x, fs, int(modes), omega_min)
     if omega_c is None:
@@ -313,7 +343,9 @@ def estimate_wavelet(
     mode_data: list[dict[str, Any]] = []
     for k, w_init in enumerate(omegas):
         res = _identify_mode(t, x, fs, w_init, omega_c=omega_c, coi_factor=coi_factor,
-                             min_snr=min_snr, noise=osc.noise, iterations=int(iterations))
+                             min_snr=min_snr, noise=noise, iterations=int(iterations))
+        if q > 1:  # the boxcar's gain at the mode's frequency
+            res["amplitude"] = res["amplitude"] / block_mean_gain(res["omega_d"], q, record.fs)
         # ridge search band: +-2 standard deviations of the wavelet's Gaussian passband,
         # and not past the geometric midpoint to a neighbouring mode
         band = np.abs(np.log(grid / w_init)) < 2.0 / omega_c
@@ -327,6 +359,9 @@ def estimate_wavelet(
         # ridge at the scalogram's instants, held to the nearest one at every sample
         near = np.clip(np.rint(np.arange(i0, i1) / step).astype(int), 0, scal.shape[1] - 1)
         res["ridge"] = grid[idx[np.argmax(scal[idx], axis=0)]][near]
+        res["backbone"], res["backbone_fit"] = backbone_entries(
+            res["t"], res["amplitude"], res["omega0"],
+            mass=mass, units=(record.units["x"], record.units["u"]))
         suffix = "" if modes == 1 else f"_{k + 1}"
         params["omega0" + suffix] = Parameter(res.pop("omega0_value"), res.pop("omega0_err"),
                                               "rad/s")
@@ -339,11 +374,15 @@ def estimate_wavelet(
     }
     if modes == 1:
         data_used.update({key: mode_data[0][key] for key in
-                          ("t", "omega0", "zeta", "amplitude", "window", "window_index")})
-    diagnostics: dict[str, Any] = {"omega_c": omega_c, "noise_std": osc.noise, "snr": osc.snr}
+                          ("t", "omega0", "zeta", "amplitude", "window", "window_index",
+                           "backbone", "backbone_fit")})
+    diagnostics: dict[str, Any] = {"omega_c": omega_c, "noise_std": osc.noise, "snr": osc.snr,
+                                   "decimation": q}
     for k, m in enumerate(mode_data):
         suffix = "" if modes == 1 else f"_{k + 1}"
         diagnostics["window_start" + suffix], diagnostics["window_stop" + suffix] = m["window"]
+        diagnostics["backbone_verdict" + suffix] = m["backbone_fit"]["verdict"]
+        diagnostics["backbone_p_value" + suffix] = m["backbone_fit"].get("p_value", math.nan)
     return Estimate(method="wavelet-morlet", params=params, data_used=data_used,
                     diagnostics=diagnostics)
 
