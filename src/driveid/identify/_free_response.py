@@ -95,8 +95,12 @@ def kinetic_stop_count(glob, x_r: float, t_r: float, t_end: float,
     return max_half_cycles, False
 
 
+#: Most Jacobian rows handed to a ``sink`` at once (a 7-column block: 7 MB).
+SINK_ROWS = 1 << 17
+
+
 def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
-             jacobian: bool = True):
+             jacobian: bool = True, sink=None):
     """Exact free response sampled at ``t`` and its Jacobian.
 
     Parameters
@@ -112,20 +116,35 @@ def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
         Half cycles before the body sticks [-]; >= 1.
     jacobian : bool
         Also return the derivatives.
+    sink : callable, optional
+        Instead of returning the Jacobian, call ``sink(lo, hi, x_rows, jac_rows)`` for
+        consecutive row ranges ``[lo, hi)`` of at most :data:`SINK_ROWS` rows, with
+        ``x_rows = x[lo:hi]`` (final) and ``jac_rows`` an ``(hi - lo, 7)`` array or a
+        read-only broadcast view, valid only during the call. Memory is then O(SINK_ROWS) for the
+        derivatives instead of 56 B a sample (issue 12: normal equations built blockwise).
 
     Returns
     -------
     x : ndarray, shape (n,)
         Position [m or rad].
     jac : ndarray, shape (n, 7) or None
-        ``∂x/∂(omega0, zeta_plus, zeta_minus, theta_k_mean, theta_k_delta, x_r, t_r)``.
+        ``∂x/∂(omega0, zeta_plus, zeta_minus, theta_k_mean, theta_k_delta, x_r, t_r)``;
+        None without ``jacobian`` or with a ``sink``.
     reversals : ndarray, shape (m, 2)
         Time [s] and position of the release and of every velocity zero reached.
     """
     omega0, zp, zm, tkm, tkd = (float(v) for v in glob)
     n = t.size
     x = np.empty(n)
-    jac = np.zeros((n, 7)) if jacobian else None
+    jacobian = jacobian or sink is not None
+    # with a sink the derivatives go to it block by block: no n x 7 array
+    jac = np.zeros((n, 7)) if jacobian and sink is None else None
+
+    def constant_rows(lo, hi, row):
+        for a in range(lo, hi, SINK_ROWS):
+            b = min(a + SINK_ROWS, hi)
+            sink(a, b, x[a:b], np.broadcast_to(row, (b - a, 7)))
+
     X, T = float(x_r), float(t_r)
     dX = np.zeros(7)
     dX[5] = 1.0
@@ -133,7 +152,9 @@ def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
     dT[6] = 1.0
     i0 = int(np.searchsorted(t, T, "left"))
     x[:i0] = X  # held before the release
-    if jacobian:
+    if sink is not None:
+        constant_rows(0, i0, dX.copy())
+    elif jacobian:
         jac[:i0] = dX
     s = first_direction(X, tkd)
     reversals = [(T, X)]
@@ -145,12 +166,14 @@ def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
         A = X - e
         T_end = T + math.pi / wd
         i1 = int(np.searchsorted(t, T_end, "left"))
-        if i1 > i0:
-            tau = t[i0:i1] - T
+        # one block without a sink (as before); blocks of SINK_ROWS rows with one
+        for a0 in range(i0, i1, SINK_ROWS if sink is not None else max(i1 - i0, 1)):
+            a1 = min(a0 + SINK_ROWS, i1) if sink is not None else i1
+            tau = t[a0:a1] - T
             E = np.exp(-sigma * tau)
             C, S = np.cos(wd * tau), np.sin(wd * tau)
             g = E * (C + (sigma / wd) * S)
-            x[i0:i1] = e + A * g
+            x[a0:a1] = e + A * g
             if jacobian:
                 d_sigma = np.zeros(7)
                 d_sigma[0], d_sigma[iz] = zeta, omega0
@@ -163,7 +186,11 @@ def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
                 g_wd = E * (-tau * S + sigma * tau * C / wd - sigma * S / (wd * wd))
                 # one (m x 5) @ (5 x 7) product instead of five outer products
                 basis = np.column_stack([1.0 - g, g, A * g_sigma, A * g_wd, -A * g_tau])
-                jac[i0:i1] = basis @ np.vstack([de, dX, d_sigma, d_wd, dT])
+                rows = basis @ np.vstack([de, dX, d_sigma, d_wd, dT])
+                if sink is not None:
+                    sink(a0, a1, x[a0:a1], rows)
+                else:
+                    jac[a0:a1] = rows
         rho = math.exp(-math.pi * zeta / root)
         if jacobian:
             de = np.zeros(7)
@@ -181,6 +208,8 @@ def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
             break
     if i0 < n:  # stuck for good
         x[i0:] = X
-        if jacobian:
+        if sink is not None:
+            constant_rows(i0, n, dX.copy())
+        elif jacobian:
             jac[i0:] = dX
     return x, jac, np.array(reversals)

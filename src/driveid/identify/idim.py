@@ -185,8 +185,9 @@ def idim_regressor(
         y = y - (evaluate_expression(load, values) if isinstance(load, str)
                  else _per_sample(load, record.n, "load"))
     if offset is not None:
-        y = y - float(offset)
+        y -= float(offset)  # y is ours (a copy of u): in place
     extra = [evaluate_expression(r, values) for r in regressors]
+    del values, xf  # only expressions use the filtered position
     # the zero-phase filter's start-up transient lasts a few 1/cutoff_hz
     cut = max(int(edge), math.ceil(3.0 * fs / cutoff_hz))
     sl = slice(cut, record.n - cut)
@@ -198,19 +199,22 @@ def idim_regressor(
             f"record too short for IDIM after dropping {cut} edge samples and decimating "
             f"by {decimate}; need >= {min_len} samples; got {v.size}"
         )
+    # one column at a time: decimating each equals decimating the stacked n x p matrix,
+    # which held p full columns plus the filter's padded copies (issue 12)
     if model == "symmetric":
-        cols = [a, v, np.sign(v)] + ([np.ones_like(v)] if offset is None else [])
+        cols = [lambda: a, lambda: v, lambda: np.sign(v)] + (
+            [lambda: np.ones_like(v)] if offset is None else [])
     else:
-        pos, neg = v > 0, v < 0
-        cols = [a, np.where(pos, v, 0.0), pos.astype(float), np.where(neg, v, 0.0),
-                -neg.astype(float)]
-    W = np.column_stack(cols + extra)
+        cols = [lambda: a, lambda: np.where(v > 0, v, 0.0), lambda: (v > 0).astype(float),
+                lambda: np.where(v < 0, v, 0.0), lambda: -(v < 0).astype(float)]
+    cols += [lambda c=c: c for c in extra]
     if decimate > 1:
-        W = sps.decimate(W, int(decimate), axis=0)
+        W = np.column_stack([sps.decimate(make(), int(decimate)) for make in cols])
         y = sps.decimate(y, int(decimate))
         v_dec = v[:: int(decimate)]
         t = t[:: int(decimate)]
     else:
+        W = np.column_stack([make() for make in cols])
         v_dec = v
     min_speed = 0.0 if min_speed is None else float(min_speed)
     if not (math.isfinite(min_speed) and min_speed >= 0):
@@ -223,16 +227,21 @@ def idim_regressor(
 
 
 def _standstill(x: np.ndarray, window: int) -> np.ndarray:
-    steps = np.abs(np.diff(x))
-    steps = steps[steps > 0]
-    if steps.size == 0:
-        return np.ones(x.size, bool)
-    quantum = float(steps.min())
     from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
+    from driveid.signal.repair import _interval_blocks
+
+    # smallest non-zero step over blocks of steps: no whole-record temporaries
+    moving = [float(np.min(d[d > 0])) for d in (np.abs(d) for _, d in _interval_blocks(x))
+              if np.any(d > 0)]
+    if not moving:
+        return np.ones(x.size, bool)
+    quantum = min(moving)
     size = 2 * int(window) + 1
-    ptp = maximum_filter1d(x, size, mode="nearest") - minimum_filter1d(x, size, mode="nearest")
+    ptp = maximum_filter1d(x, size, mode="nearest")
+    ptp -= minimum_filter1d(x, size, mode="nearest")
     still = ptp <= 2.0 * quantum * (1 + 1e-9)
+    del ptp
     # the zero-phase filter smears the stop over a few windows: its rows are unreliable too
     return maximum_filter1d(still.astype(np.int8), 4 * int(window) + 1) > 0
 

@@ -25,7 +25,8 @@ Error bars
 quantisation is not white noise (its errors follow the signal), so for quantised records
 (detected, or ``quantisation=`` the step) the covariance is that of a parametric bootstrap:
 the fitted response plus the residual noise re-quantised on grids of random phase, refitted
-``bootstrap`` times.
+``bootstrap`` times; its variances are scaled by ``(t_{B-1,0.975}/1.96)²`` (1.108 at B = 25)
+so that ±1.96 standard errors has the Student-t width of a variance estimated from B refits.
 
 A constant position offset (encoder zero ≠ spring zero) is not identifiable from a free
 decay: it trades one-for-one with ``theta_k_delta``. Pass the spring zero ``x_ref``; the
@@ -42,25 +43,36 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
+from scipy import stats
 from threadpoolctl import threadpool_limits
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify._free_response import GLOBAL_NAMES, kinetic_stop_count, response
+from driveid.identify._free_response import (
+    GLOBAL_NAMES,
+    SINK_ROWS,
+    kinetic_stop_count,
+    response,
+)
 from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.logdec import estimate_log_decrement
 from driveid.io.record import Record
+from driveid.signal.repair import _interval_blocks
 
 __all__ = ["detect_quantum", "estimate_output_error", "physical_parameters"]
 
+#: Samples per block of the chunked passes over a record (0.5 MB of float64).
+_BLOCK = 1 << 16
 _ZETA_BOUND = 0.999  # |ζ| < 1: the model is underdamped by construction
 #: Above this many samples the stop-count search and the start values use a decimated
 #: copy; the final fits use every sample (so the efficiency is unchanged).
 _SEARCH_SAMPLES = 60_000
 #: Most samples of the final fit; longer records are fitted on every k-th sample. White noise
 #: stays white and the model is exact at the kept times, so the estimate stays unbiased and
-#: its error bars honest (variance ~k times the full record's bound); the n x p Jacobian
-#: then stays below ~200 MB (issue 12: 1e7 samples needed > 2.7 GB).
+#: its error bars honest (variance ~k times the full record's bound). No anti-alias filter:
+#: the model is compared with the samples themselves, and a filter would change the model.
+#: This now bounds time (25 bootstrap refits of an encoder record); the Jacobian is formed
+#: in blocks whatever the length (issue 12: the whole n x p Jacobian needed > 2.7 GB).
 _MAX_FIT_SAMPLES = 2_000_000
 
 
@@ -79,13 +91,23 @@ def detect_quantum(x: np.ndarray) -> float | None:
         1e-6 of a step), else ``None``.
     """
     x = np.asarray(x, float)
-    steps = np.abs(np.diff(x))
-    steps = steps[steps > 1e-12 * max(float(np.max(np.abs(x))), 1e-300)]
-    if steps.size == 0:
+    # in blocks (O(block) memory at any length; the same numbers as whole-array passes)
+    blocks = range(0, x.size, _BLOCK)
+    floor = 1e-12 * max(max(float(np.max(np.abs(x[s:s + _BLOCK]))) for s in blocks), 1e-300)
+    q = math.inf
+    for _, step in _interval_blocks(x, _BLOCK):
+        step = np.abs(step)
+        step = step[step > floor]
+        if step.size:
+            q = min(q, float(np.min(step)))
+    if q == math.inf:
         return None
-    q = float(np.min(steps))
-    levels = (x - x[0]) / q
-    if np.max(np.abs(levels - np.round(levels))) > 1e-6 or np.ptp(levels) < 8:
+    worst, low, high = 0.0, math.inf, -math.inf
+    for s in blocks:
+        levels = (x[s:s + _BLOCK] - x[0]) / q
+        worst = max(worst, float(np.max(np.abs(levels - np.round(levels)))))
+        low, high = min(low, float(np.min(levels))), max(high, float(np.max(levels)))
+    if worst > 1e-6 or high - low < 8:
         return None
     return q
 
@@ -138,6 +160,11 @@ def _physical_jacobian(base, mass, stiffness, names):
     return G
 
 
+def _joined(arrays, join=np.concatenate):
+    """One record's array itself, several joined (a copy of one record is 8 B a sample)."""
+    return arrays[0] if len(arrays) == 1 else join(arrays)
+
+
 class _Problem:
     """Records, their per-record unknowns and the stop counts of one candidate."""
 
@@ -169,39 +196,84 @@ class _Problem:
                 if self.drift:
                     full[:, k + 2] = rel
                 jacs.append(full)
-        return np.concatenate(parts), (np.vstack(jacs) if jacobian else None)
+        return _joined(parts), (_joined(jacs, np.vstack) if jacobian else None)
+
+    def normal_equations(self, p, counts, target):
+        """Return ``(f, JᵀJ, Jᵀ(target - f))`` with J formed in blocks, never whole.
+
+        Each record's rows touch only its own columns (the shared five, its release and
+        drift), so each block of at most ``SINK_ROWS`` rows adds a small product into
+        the ``p x p`` matrix: memory O(p² + block) besides ``f`` (8 B a sample).
+        """
+        n_par = p.size
+        jtj = np.zeros((n_par, n_par))
+        jtr = np.zeros(n_par)
+        parts, offset = [], 0
+        for r, (t, n_half) in enumerate(zip(self.t, counts, strict=True)):
+            k = 5 + self.per * r
+            cols = np.r_[0:5, k:k + self.per]
+            y_r = target[offset:offset + t.size]
+            slope = p[k + 2] if self.drift else 0.0
+
+            def sink(lo, hi, x_rows, rows, t=t, y_r=y_r, cols=cols, slope=slope):
+                if self.drift:
+                    rel = t[lo:hi] - t[0]
+                    block = np.column_stack([rows, rel])
+                    resid = y_r[lo:hi] - (x_rows + slope * rel)
+                else:
+                    block, resid = rows, y_r[lo:hi] - x_rows
+                jtj[np.ix_(cols, cols)] += block.T @ block
+                jtr[cols] += block.T @ resid
+
+            x, _, _ = response(t, p[:5], p[k], p[k + 1], n_half, sink=sink)
+            if self.drift:
+                x = x + slope * (t - t[0])
+            parts.append(x)
+            offset += t.size
+        return _joined(parts), jtj, jtr
 
     def fit(self, p0, counts, y=None):
-        target = np.concatenate(self.y) if y is None else y
+        target = _joined(self.y) if y is None else y
         lower = np.full(p0.size, -np.inf)
         upper = np.full(p0.size, np.inf)
         lower[0], lower[1:3], upper[1:3] = 1e-12, -_ZETA_BOUND, _ZETA_BOUND
+
+        def linearise(p):
+            if self.n <= SINK_ROWS:  # small: the whole Jacobian, kept for diagnostics
+                f, jac = self.model(p, counts)
+                r = target - f
+                return r, jac.T @ jac, jac.T @ r, jac
+            f, jtj, jtr = self.normal_equations(p, counts, target)
+            return target - f, jtj, jtr, None
+
         with np.errstate(over="ignore", invalid="ignore"):
             return _levenberg_marquardt(
-                lambda p, jacobian=True: self.model(p, counts, jacobian),
+                lambda p: self.model(p, counts, False)[0], linearise,
                 target, np.clip(p0, lower, upper), lower, upper)
 
 
 class _Solution:
-    def __init__(self, x, cost, jac, status, nfev):
-        self.x, self.cost, self.jac, self.status, self.nfev = x, cost, jac, status, nfev
+    """LM result: ``jtj`` = JᵀJ at ``x``; ``jac`` itself only for small problems."""
+
+    def __init__(self, x, cost, jtj, jac, status, nfev):
+        self.x, self.cost, self.jtj, self.jac = x, cost, jtj, jac
+        self.status, self.nfev = status, nfev
 
 
-def _levenberg_marquardt(model, target, p, lower, upper, max_iter=100):
+def _levenberg_marquardt(model, linearise, target, p, lower, upper, max_iter=100):
     """Levenberg–Marquardt on the normal equations with Marquardt's diagonal scaling.
 
     The normal equations (p x p) replace the SVD of the n x p Jacobian that scipy's
     ``least_squares`` takes per iteration: the condition numbers here are ~1e2-1e4, so
     squaring them costs nothing, and a 30 000-sample iteration drops from ~50 ms to ~15 ms.
+    They also let a long record's Jacobian be formed in blocks (``linearise`` returns
+    ``(r, JᵀJ, Jᵀr, J or None)``): memory O(p²) + a block, not 8 p B a sample.
     Bounds (ω0 > 0, |ζ| < 1) are kept by projection.
     """
-    f, jac = model(p)
-    r = target - f
+    r, A, g, jac = linearise(p)
     cost = 0.5 * float(r @ r)
     lam, nfev, status = 1e-3, 1, 0
     for _ in range(max_iter):
-        A = jac.T @ jac
-        g = jac.T @ r
         d = np.diag(A).copy()
         d[d <= 0] = 1.0
         improved = False
@@ -212,7 +284,7 @@ def _levenberg_marquardt(model, target, p, lower, upper, max_iter=100):
                 lam *= 10.0
                 continue
             trial = np.clip(p + step, lower, upper)
-            f_t = model(trial, False)[0]
+            f_t = model(trial)
             nfev += 1
             r_t = target - f_t
             cost_t = 0.5 * float(r_t @ r_t)
@@ -226,20 +298,19 @@ def _levenberg_marquardt(model, target, p, lower, upper, max_iter=100):
         small_step = np.all(np.abs(trial - p) <= 1e-12 * (np.abs(p) + 1e-12))
         small_gain = cost - cost_t <= 1e-14 * cost
         p, cost = trial, cost_t
-        f, jac = model(p)
-        r = target - f
+        r, A, g, jac = linearise(p)
         lam = max(lam / 3.0, 1e-12)
         if small_step or small_gain:
             status = 1
             break
-    return _Solution(p, cost, jac, status, nfev)
+    return _Solution(p, cost, A, jac, status, nfev)
 
 
-def _guess(records, y, mass, stiffness):
+def _guess(records, x_ref, mass, stiffness):
     """Start values from the least-squares log decrement; release per record, mid-swing test."""
     step = math.ceil(sum(r.n for r in records) / _SEARCH_SAMPLES)
-    shifted = [Record(t=r.t[::step], x=v[::step], meta=r.meta, max_jitter=r.max_jitter)
-               for r, v in zip(records, y, strict=True)]
+    shifted = [Record(t=r.t[::step], x=np.asarray(r.x, float)[::step] - float(x_ref),
+                      meta=r.meta, max_jitter=r.max_jitter) for r in records]
     try:
         start = estimate_log_decrement(shifted, mass=mass, stiffness=stiffness)
     except IdentificationError as exc:
@@ -344,6 +415,14 @@ def estimate_output_error(
     samples the start values and the discrete stop-count search run on a decimated copy
     and only the final fits of the plausible counts use every sample.
 
+    Memory (issue 12): above 131 072 samples the Jacobian is never formed whole: ``JᵀJ``
+    and ``Jᵀr`` are summed over blocks of 131 072 rows (O(p² + block)), so a fit holds
+    about eight vectors of the fitted samples (data, model, residuals, trial step, and the
+    fitted response and residuals kept in ``data_used``): ~2.7x the record's t, x, u
+    (measured 3.7x with reading at 6e5 samples, ``tests/io/test_memory_bounds.py``). Above
+    2e6 samples every k-th sample is fitted (see the warning), so at 1e7 samples the fit
+    adds ~0.6x.
+
     Examples
     --------
     >>> from driveid.sim import OscillatorParams, simulate_free_decay
@@ -366,9 +445,15 @@ def estimate_output_error(
             raise ParameterError(f"{name} must be a positive number; got {value!r}")
     if not (isinstance(bootstrap, int) and bootstrap >= 25):
         raise ParameterError(f"bootstrap must be an integer >= 25 replicates; got {bootstrap!r}")
-    y = [np.asarray(r.x, float) - float(x_ref) for r in records]
+    n_given = sum(r.n for r in records)
+    subsample = math.ceil(n_given / _MAX_FIT_SAMPLES)
+    # only the kept samples are shifted by x_ref (a full copy was 8 B a sample more)
+    y = [np.asarray(r.x, float)[::subsample] - float(x_ref) for r in records]
     if quantisation == "auto":
-        found = [detect_quantum(v + x_ref) for v in y]
+        # x itself when x_ref = 0 ((x - 0) + 0 == x), so no copy of a long record
+        found = [detect_quantum(np.asarray(r.x, float) if x_ref == 0.0
+                                else (np.asarray(r.x, float) - float(x_ref)) + x_ref)
+                 for r in records]
         quantum = found[0] if all(q is not None for q in found) else None
     elif quantisation is None:
         quantum = None
@@ -380,12 +465,8 @@ def estimate_output_error(
         quantum = float(quantisation)
     # one BLAS thread: the products are small (p = 7..20) and threads only contend
     with threadpool_limits(limits=1):
-        problem = _Problem([np.asarray(r.t, float) for r in records], y, drift)
-        n_given = problem.n
-        subsample = math.ceil(n_given / _MAX_FIT_SAMPLES)
-        if subsample > 1:
-            problem = problem.decimated(subsample)
-        glob, releases, mid_swing = _guess(records, y, mass, stiffness)
+        problem = _Problem([np.asarray(r.t, float)[::subsample] for r in records], y, drift)
+        glob, releases, mid_swing = _guess(records, x_ref, mass, stiffness)
         p0 = list(glob)
         for x_r, t_r in releases:
             p0 += [x_r, t_r] + ([0.0] if drift else [])
@@ -409,7 +490,7 @@ def estimate_output_error(
         s2 = chosen["rss"] / dof
         for c in candidates:
             c["chi2"] = c["rss"] / s2 if s2 > 0 else (0.0 if c is chosen else math.inf)
-            c["cov"] = _ls_covariance(c["jac"], s2)
+            c["cov"] = _ls_covariance(c["sol"], s2)
         if quantum is not None:
             boot = _bootstrap_covariance(problem, chosen, s2, quantum, bootstrap, rng,
                                          progress)
@@ -471,7 +552,7 @@ def _refine(problem, coarse, candidates):
         sol = problem.fit(c["p"], c["counts"])
         if sol.status > 0 and not _forbidden(problem, sol.x, c["counts"]):
             out.append({"p": sol.x, "counts": c["counts"], "rss": float(2 * sol.cost),
-                        "jac": sol.jac, "sol": sol})
+                        "sol": sol})
     return out
 
 
@@ -519,19 +600,27 @@ def _candidates(problem, p_best, counts0, settled=None, max_fits=30):
         if key in seen:
             continue
         seen.add(key)
-        out.append({"p": sol.x, "counts": counts, "rss": float(2 * sol.cost), "jac": sol.jac,
-                    "sol": sol})
+        out.append({"p": sol.x, "counts": counts, "rss": float(2 * sol.cost), "sol": sol})
     return out
 
 
-def _ls_covariance(jac, s2):
+def _ls_covariance(sol, s2):
+    # JᵀJ of the full Jacobian when it was kept (as before), else the blockwise sum
+    jtj = sol.jac.T @ sol.jac if sol.jac is not None else sol.jtj
     try:
-        cov = np.linalg.inv(jac.T @ jac) * s2
+        cov = np.linalg.inv(jtj) * s2
     except np.linalg.LinAlgError:
         raise IdentificationError(
             "the record cannot separate the unknowns (singular Jacobian); record more half "
             "cycles in both directions") from None
     return cov
+
+
+def _condition(sol):
+    """Condition number of the Jacobian [-]: its SVD, or sqrt(cond(JᵀJ)) for long records."""
+    if sol.jac is not None:
+        return float(np.linalg.cond(sol.jac))
+    return float(math.sqrt(np.linalg.cond(sol.jtj)))
 
 
 def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progress=None):
@@ -555,7 +644,12 @@ def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progres
             f"only {len(estimates)} of {replicates} bootstrap refits converged; the error bars "
             "of this quantised record cannot be trusted (record more cycles or a finer encoder)")
     boot = np.cov(np.array(estimates), rowvar=False)
-    return np.atleast_2d(boot)
+    # a variance estimated from m replicates makes (estimate - truth)/se a Student t with m - 1
+    # degrees of freedom: widen se so that the usual ±1.96 se interval has t's 95 % width
+    # (×1.053 at m = 25; 200 encoder decays gave c_mean coverage 0.92 without it)
+    m = len(estimates)
+    widen = float(stats.t.ppf(0.975, m - 1) / stats.norm.ppf(0.975))
+    return np.atleast_2d(boot) * widen**2
 
 
 def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum, mass,
@@ -613,7 +707,7 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
                         "the first sample (extrapolated)")
     per = problem.per
     fitted, _ = problem.model(p, chosen["counts"], jacobian=False)
-    residual = np.concatenate(problem.y) - fitted
+    residual = _joined(problem.y) - fitted
     return Estimate(
         method="output-error",
         params=params,
@@ -638,7 +732,7 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
             "n_candidates": len(candidates),
             "candidate_weights": [float(w) for w in weights],
             "mid_swing": list(mid_swing),
-            "condition_number": float(np.linalg.cond(chosen["jac"])),
+            "condition_number": _condition(chosen["sol"]),
             "nfev": int(chosen["sol"].nfev),
         },
     )

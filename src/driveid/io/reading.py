@@ -145,7 +145,7 @@ def read_record(
         table, source=str(path), sha256=file_sha256(path), columns=columns, fs=fs,
         window=window, max_jitter=max_jitter, scale=scale, units=units,
         counts_per_rev=counts_per_rev, counts_per_metre=counts_per_metre,
-        record_type=record_type)
+        record_type=record_type, owned=True)
 
 
 def choose_columns(table: Table, columns: Mapping[str, str | int] | None = None, *,
@@ -307,6 +307,7 @@ def record_from_table(
     counts_per_rev: float | None = None,
     counts_per_metre: float | None = None,
     record_type: Callable[..., Any],
+    owned: bool = False,
 ) -> Any:
     """Build a record from a :class:`~driveid.io.tables.Table` (the reading pipeline).
 
@@ -323,6 +324,11 @@ def record_from_table(
     record_type : type
         :class:`driveid.io.Record` (passed in, so that this module stays below
         ``record.py`` in the import order).
+    owned : bool
+        True when the table's columns belong to this call alone (a table just read from a
+        file): columns already in SI units are then frozen and wrapped by the record
+        without a copy (8 B a sample each). False leaves a caller's arrays writeable and
+        lets the record copy them.
 
     Returns
     -------
@@ -403,7 +409,8 @@ def record_from_table(
             continue
         si_unit, factor = to_si(col, unit, source=name, counts_per_rev=counts_per_rev,
                                 counts_per_metre=counts_per_metre)
-        arrays[col] = arrays[col] * factor
+        if factor != 1.0:  # x * 1.0 == x: no 8 B/sample copy of a column already in SI
+            arrays[col] = arrays[col] * factor
         si[col] = si_unit
     _complete_units(si, applied_scale)
     _check_consistent(si, in_file, name)
@@ -421,8 +428,10 @@ def record_from_table(
         meta["fs_given"] = float(rate)
     if window is not None and window != (None, None) and t_all.size:
         meta["window_requested"] = [None if w is None else float(w) for w in window]
+    given = {id(c) for c in table.columns.values()}
     for arr in arrays.values():
-        if arr.dtype == np.float64 and arr.base is None and arr.flags.writeable:
+        if (arr.dtype == np.float64 and arr.base is None and arr.flags.writeable
+                and (owned or id(arr) not in given)):
             arr.setflags(write=False)  # ours alone: the Record may keep it without a copy
     return record_type(t=arrays["t"], x=arrays["x"], v=arrays.get("v"), u=arrays.get("u"),
                        meta=meta, max_jitter=max_jitter)
@@ -445,10 +454,14 @@ def _trim_missing(arrays: dict[str, np.ndarray], source: str) -> dict[str, np.nd
         raise FileFormatError(
             f"{source}: the chosen columns have different lengths {sizes}; choose columns of "
             "one table (or one matrix) with --time/--position/--velocity/--force")
-    ok = np.all([np.isfinite(a) for a in arrays.values()], axis=0)
+    ok = None
+    for a in arrays.values():  # one boolean mask (1 B a sample), not one per column
+        ok = np.isfinite(a) if ok is None else np.logical_and(ok, np.isfinite(a), out=ok)
     if not ok.any():
         return arrays  # Record explains non-finite data
     first, last = int(np.argmax(ok)), int(ok.size - np.argmax(ok[::-1]))
+    if first == 0 and last == ok.size:
+        return arrays  # complete: keep the columns themselves (a Record may wrap them)
     return {c: a[first:last] for c, a in arrays.items()}
 
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 import csv
 import json
 import re
+import zipfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -437,13 +438,15 @@ class _Collector:
             return
         if transposed:
             arr = arr.T
-        arr = np.squeeze(arr)
+        if arr.ndim != 1:
+            arr = np.squeeze(arr)  # (a 1-D array stays itself, not a view)
         base, split_unit = split_header(name) if name else (name, None)
         unit = unit or split_unit
         if arr.ndim == 0:
             self.scalars[base] = float(arr)
         elif arr.ndim == 1:
-            self.columns[_unique(base, self.columns)] = arr.astype(float)
+            # a fresh float column (np.load, h5py) is kept, not copied (8 B a sample)
+            self.columns[_unique(base, self.columns)] = arr.astype(float, copy=False)
             if unit:
                 self.units[base] = unit
         elif arr.ndim == 2:
@@ -533,10 +536,45 @@ def _read_npz(path: Path) -> Table:
                 if key == "meta":
                     meta = json.loads(str(npz["meta"]))
                 else:
-                    collector.array(key, npz[key])
-    except (ValueError, OSError) as exc:
+                    collector.array(key, _npz_array(npz, key))
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
         raise FileFormatError(f"{path.name}: cannot read as .npz ({exc})") from None
     return collector.table(meta=meta, format="npz")
+
+
+def _npz_array(npz: Any, key: str) -> Any:
+    """Read one array of an open .npz into an array that owns its memory.
+
+    ``npz[key]`` returns a view (``base`` set), which a :class:`Record` must copy: 8 B a
+    sample more at the peak. Plain numeric arrays are read straight into ``np.empty`` in
+    1 MB pieces instead; anything else (object arrays, format 3.0 headers, scalars, raw
+    bytes) goes through numpy's own reader and its checks.
+    """
+    fmt = np.lib.format
+    names = npz.zip.namelist()
+    member = key if key in names else f"{key}.npy"
+    if member not in names:
+        return npz[key]
+    with npz.zip.open(member) as fh:
+        try:
+            version = fmt.read_magic(fh)
+        except ValueError:
+            return npz[key]
+        header = {(1, 0): fmt.read_array_header_1_0, (2, 0): fmt.read_array_header_2_0}
+        if version not in header:
+            return npz[key]
+        shape, fortran, dtype = header[version](fh)
+        if dtype.hasobject or dtype.itemsize == 0 or len(shape) == 0 or 0 in shape:
+            return npz[key]
+        arr = np.empty(shape, dtype, order="F" if fortran else "C")
+        flat = memoryview(arr.T if fortran else arr).cast("B")
+        done = 0
+        while done < flat.nbytes:
+            got = fh.readinto(flat[done:done + (1 << 20)])
+            if not got:
+                raise ValueError(f"array {key!r} is truncated ({done} of {flat.nbytes} bytes)")
+            done += got
+    return arr
 
 
 def _read_mat(path: Path) -> Table:

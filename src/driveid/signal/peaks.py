@@ -7,6 +7,7 @@ misses the true peak by up to ``A (ω dt)² / 8``) and averages noise and encode
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,6 +16,7 @@ from scipy.signal import find_peaks
 
 from driveid.errors import IdentificationError, RecordError
 from driveid.io.record import Record
+from driveid.signal.repair import _interval_blocks
 
 __all__ = ["Peaks", "find_oscillation_peaks", "dominant_period"]
 
@@ -76,34 +78,72 @@ def dominant_period(record: Record) -> float:
     -------
     float
         Period [s] of the largest spectral peak of the position (mean removed, Hann window).
+
+    Notes
+    -----
+    The peak of the spectrum zero-padded to ``n_fft`` (>= 8 n, a power of 2) is found
+    without the padded FFT (2^27 points at 1e7 samples): the unpadded FFT locates it, then
+    the DFT is evaluated on the same ``n_fft`` grid within +-2 coarse bins only, summed over
+    blocks of samples. Memory: the windowed signal and its FFT, about 3 x 8 B a sample (the
+    chirp z-transform used before took 1.1 GB at 1e7 samples).
     """
     from scipy.fft import next_fast_len
-    from scipy.signal import zoom_fft
 
-    x = record.x - np.mean(record.x)
-    xw = x * np.hanning(record.n)
+    n = record.n
+    mean = np.mean(record.x)
+    xw = np.empty(n)
+    for s in range(0, n, _BLOCK):
+        xw[s:s + _BLOCK] = _windowed(record.x, mean, s, n)
     fs = 1.0 / record.dt
     low = 2.0 / record.duration  # under two cycles per record is drift, not an oscillation
-    # the peak of the spectrum zero-padded to n_fft (>= 8 n, a power of 2), without the
-    # padded FFT (2^27 points at 1e7 samples): locate it on the unpadded FFT, then evaluate
-    # the same n_fft grid only within +-2 coarse bins (chirp z-transform, O(n log n))
-    n_fft = 1 << int(np.ceil(np.log2(8 * record.n)))
-    n1 = next_fast_len(record.n, real=True)
+    n_fft = 1 << int(np.ceil(np.log2(8 * n)))
+    n1 = next_fast_len(n, real=True)
     coarse = np.abs(np.fft.rfft(xw, n1))
     coarse[np.fft.rfftfreq(n1, record.dt) < low] = 0.0
     k1 = int(np.argmax(coarse))
     if k1 == 0 or coarse[k1] == 0:
         raise IdentificationError("the record does not move; no oscillation to analyse")
+    del coarse
     df = fs / n_fft
     j0 = max(int(np.floor((k1 - 2) * fs / n1 / df)), 0)
     j1 = min(int(np.ceil((k1 + 2) * fs / n1 / df)), n_fft // 2)
     freqs = np.arange(j0, j1 + 1) * df
-    spec = np.abs(zoom_fft(xw, [freqs[0], freqs[-1]], m=freqs.size, fs=fs, endpoint=True))
+    spec = np.abs(_dft_at(xw, freqs / fs))
     spec[freqs < low] = 0.0
     k = int(np.argmax(spec))
     if freqs[k] == 0 or spec[k] == 0:
         raise IdentificationError("the record does not move; no oscillation to analyse")
     return float(1.0 / freqs[k])
+
+
+#: Samples per block of the chunked passes over a record (64 k: 0.5 MB of float64).
+_BLOCK = 1 << 16
+
+
+def _windowed(x: np.ndarray, mean: float, s: int, n: int) -> np.ndarray:
+    """``(x - mean) * np.hanning(n)`` on samples ``s .. s + _BLOCK`` (same arithmetic)."""
+    e = min(s + _BLOCK, n)
+    m = float(n)
+    k = np.arange(1 - m + 2 * s, 1 - m + 2 * e, 2)[: e - s]
+    return (x[s:e] - mean) * (0.5 + 0.5 * np.cos(np.pi * k / (m - 1)))
+
+
+def _dft_at(x: np.ndarray, cycles: np.ndarray, block: int = 4096) -> np.ndarray:
+    """``sum_k x[k] exp(-2 pi i c k)`` for each ``c`` in ``cycles`` [cycles a sample].
+
+    A ``(len(cycles), block)`` table of phases is reused for every block of samples and
+    rotated by the block's start phase (reduced modulo one cycle, so the phase of a late
+    block keeps its precision): O(n len(cycles)) work, O(block len(cycles)) memory.
+    """
+    phase = -2 * np.pi * np.outer(cycles, np.arange(block))
+    table = np.vstack([np.cos(phase), np.sin(phase)])  # real products: one dgemv a block
+    m = cycles.size
+    out = np.zeros(m, complex)
+    for s in range(0, x.size, block):
+        part = x[s:s + block]
+        sums = (table @ part) if part.size == block else table[:, :part.size] @ part
+        out += np.exp(-2j * np.pi * np.mod(cycles * s, 1.0)) * (sums[:m] + 1j * sums[m:])
+    return out
 
 
 def find_oscillation_peaks(
@@ -147,6 +187,11 @@ def find_oscillation_peaks(
     zero (Coulomb friction makes the acceleration jump at the peak; see ``_refine``), or a
     3-point parabola when fewer than 7 samples are available. A final plateau (the body
     stuck) ends the list with a peak whose value is the plateau's median.
+
+    Memory (issue 12): at most about 24 B a sample beyond the record - the period estimate
+    (windowed signal, unpadded FFT), or scipy's ``find_peaks`` on ``-x`` (a negated copy
+    and three n/2 index arrays); the noise level works in place on one difference array;
+    the refinement takes batches of at most 65 536 window samples (~10 MB).
     """
     if record.corrupted:
         i0, i1 = record.corrupted[0]
@@ -188,7 +233,7 @@ def find_oscillation_peaks(
             j = 0  # noise decides which early sample is largest: the release is t[0]
         # at rest there: over m samples it moves far less than at full speed
         m = max(3, near_start // 2)
-        max_step = float(np.max(np.abs(np.diff(x))))
+        max_step = max(float(np.max(np.abs(d))) for _, d in _interval_blocks(x, _BLOCK))
         k_end = min(j + m, x.size - 1)
         at_rest = abs(x[k_end] - x[j]) <= 0.25 * m * max_step + 3 * noise + 2 * quantum
         if abs(x[j] - x[idx[0]]) >= min_prominence and at_rest and (j == 0 or _is_release(x, j)):
@@ -203,8 +248,11 @@ def find_oscillation_peaks(
     inner = (idx - half_w >= 0) & (idx + half_w < x.size) & (half_w >= 3)
     for k in np.flatnonzero(~inner):
         t_pk[k], x_pk[k], t_se[k], x_se[k] = _refine(record.t, x, int(idx[k]), half_w)
-    for c in range(0, int(inner.sum()), _CHUNK):  # bounded memory on long records
-        k = np.flatnonzero(inner)[c:c + _CHUNK]
+    # bounded memory on long records: a batch holds at most _CHUNK_SAMPLES window samples
+    # (each with 7 fit columns and their QR: ~150 B a window sample, ~10 MB a batch)
+    per_batch = max(1, min(_CHUNK, _CHUNK_SAMPLES // (2 * half_w + 1)))
+    for c in range(0, int(inner.sum()), per_batch):
+        k = np.flatnonzero(inner)[c:c + per_batch]
         t_pk[k], x_pk[k], t_se[k], x_se[k] = _refine_many(record.t, x, idx[k], half_w)
     stuck = np.zeros(idx.size, bool)
     time_valid = np.ones(idx.size, bool)
@@ -249,18 +297,37 @@ def find_oscillation_peaks(
 
 def _noise_level(x: np.ndarray) -> tuple[float, float]:
     """Robust noise std from third differences, and the apparent quantisation step."""
-    d3 = np.diff(x, 3)
+    # memory: one array of third differences (8 B a sample), made and reduced in place; the
+    # order of its values does not matter to a median, so both medians partition it in place
+    d3 = np.diff(x)
+    for size in (d3.size - 1, d3.size - 2):  # np.diff(x, 3), one block at a time
+        for s in range(0, size, _BLOCK):
+            e = min(s + _BLOCK, size)
+            np.subtract(d3[s + 1:e + 1], d3[s:e], out=d3[s:e])
+    d3 = d3[: max(x.size - 3, 0)]
     # third differences of white noise have variance 20 σ²; smooth motion contributes ~0
-    noise = float(1.4826 * np.median(np.abs(d3 - np.median(d3))) / np.sqrt(20.0))
-    steps = np.abs(np.diff(x))
-    steps = steps[steps > 0]
+    centre = np.median(d3, overwrite_input=True)
+    np.abs(np.subtract(d3, centre, out=d3), out=d3)
+    noise = float(1.4826 * np.median(d3, overwrite_input=True) / np.sqrt(20.0))
+    del d3
+    smallest = math.inf
+    for _, step in _interval_blocks(x, _BLOCK):  # two passes over blocks of steps
+        step = np.abs(step)
+        if np.any(step > 0):
+            smallest = min(smallest, float(np.min(step[step > 0])))
     quantum = 0.0
-    if steps.size:
-        smallest = float(np.min(steps))
-        # an encoder grid: every step is a whole number of the smallest step
-        if smallest > 0 and np.allclose(steps / smallest, np.round(steps / smallest), atol=1e-6):
-            quantum = smallest
+    # an encoder grid: every step is a whole number of the smallest step
+    if 0 < smallest < math.inf and all(
+            np.allclose(part / smallest, np.round(part / smallest), atol=1e-6)
+            for part in (_moving(step) for _, step in _interval_blocks(x, _BLOCK))):
+        quantum = smallest
     return noise, quantum
+
+
+def _moving(step: np.ndarray) -> np.ndarray:
+    """Return the non-zero step sizes of a block of steps."""
+    step = np.abs(step)
+    return step[step > 0]
 
 
 def _alternate(x, idx, kind):
@@ -339,6 +406,8 @@ def _refine(t, x, i, half_w):
 
 #: Peaks refined together (each holds a window of 2 half_w + 1 samples and 7 columns).
 _CHUNK = 512
+#: Most window samples refined together (at 100 kHz a window holds ~25 000 samples).
+_CHUNK_SAMPLES = 1 << 16
 _GOLDEN = 0.5 * (3.0 - 5.0**0.5)
 _GOLDEN_STEPS = 13
 _NEWTON_STEPS = 3

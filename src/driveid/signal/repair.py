@@ -21,7 +21,8 @@ class TimelineCheck:
     Attributes
     ----------
     t : ndarray, shape (n,)
-        The time vector [s], with single-sample glitches repaired.
+        The time vector [s], with single-sample glitches repaired: a repaired copy, or the
+        given array itself when nothing was repaired (no 8 B a sample copy).
     repaired : tuple of int
         Indices whose timestamp was replaced by linear interpolation.
     problem : str or None
@@ -51,6 +52,9 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
 
     Notes
     -----
+    Memory: one interval array (8 B a sample, for the median); every other pass runs over
+    blocks of 65 536 intervals (issue 12: 10 M samples took five 80 MB temporaries).
+
     A timestamp ``t[i]`` is a single-sample glitch when the intervals on both sides of it are
     off but ``t[i+1] - t[i-1]`` is two nominal intervals (at the ends: one bad interval). Such a
     sample is given ``(t[i-1] + t[i+1]) / 2``; the data value is kept (App. B.3.1).
@@ -61,9 +65,11 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
     >>> check.repaired, float(check.t[2])
     ((2,), 0.2)
     """
-    t = np.array(t, dtype=float)
-    dt = np.diff(t)
-    nominal = float(np.median(dt))
+    t = np.asarray(t, dtype=float)  # copied only when a timestamp is repaired
+    n_int = t.size - 1
+    # the median partitions a scratch array in place: one interval array is the largest
+    # temporary (8 B a sample); every later pass runs over blocks of intervals
+    nominal = float(np.median(np.diff(t), overwrite_input=True))
     if not nominal > 0:
         return TimelineCheck(
             t, (), f"time is not increasing: the median sampling interval is {nominal!r} s; "
@@ -71,7 +77,10 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
         )
     # a non-uniform timeline (max_jitter=None) has no nominal interval to repair against
     tol = np.inf if max_jitter is None else max_jitter
-    bad = np.abs(dt - nominal) > tol * nominal
+    bad = np.zeros(n_int, bool)  # 1 B a sample
+    if max_jitter is not None:
+        for s, dt in _interval_blocks(t):
+            bad[s:s + dt.size] = np.abs(dt - nominal) > tol * nominal
     repaired: list[int] = []
     for i in np.flatnonzero(bad).tolist():
         # interval i joins samples i and i+1: the culprit is the sample both bad intervals share
@@ -89,6 +98,8 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
             elif k == len(t) - 1 and bad[-1] and (len(bad) < 2 or not bad[-2]):
                 repaired.append(k)
                 break
+    if repaired:
+        t = t.copy()
     for k in repaired:
         if k == 0:
             t[0] = t[1] - nominal
@@ -96,29 +107,47 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
             t[k] = t[k - 1] + nominal
         else:
             t[k] = 0.5 * (t[k - 1] + t[k + 1])
-    dt = np.diff(t)
     problem = None
-    nonpos = np.flatnonzero(dt <= 0)
-    if nonpos.size:
-        i = int(nonpos[0])
-        kind = "duplicated" if dt[i] == 0 else "decreasing"
+    n_nonpos, first_nonpos = 0, -1
+    worst, worst_jitter, worst_dt = -1, -np.inf, 0.0
+    for s, dt in _interval_blocks(t):
+        nonpos = np.flatnonzero(dt <= 0)
+        if nonpos.size and first_nonpos < 0:
+            first_nonpos = int(nonpos[0]) + s
+        n_nonpos += nonpos.size
+        if max_jitter is not None and not n_nonpos:
+            jitter = np.abs(dt - nominal) / nominal
+            j = int(np.argmax(jitter))
+            if jitter[j] > worst_jitter:  # strict: the first of equal worst intervals
+                worst, worst_jitter, worst_dt = j + s, float(jitter[j]), dt[j]
+    if n_nonpos:
+        i = first_nonpos
+        kind = "duplicated" if t[i + 1] - t[i] == 0 else "decreasing"
         problem = (
             f"time is {kind} at samples {i} and {i + 1} (t = {float(t[i])!r} s, "
             f"{float(t[i + 1])!r} s) and "
-            f"{nonpos.size} interval(s) in all are not positive; sort the samples by time and "
+            f"{n_nonpos} interval(s) in all are not positive; sort the samples by time and "
             "drop duplicated timestamps"
         )
     elif max_jitter is not None:
-        jitter = np.abs(dt - nominal) / nominal
-        worst = int(np.argmax(jitter))
-        if jitter[worst] > max_jitter:
+        if worst_jitter > max_jitter:
             problem = (
-                f"sampling is not uniform: interval {worst} is {dt[worst]!r} s against a median "
-                f"of {nominal!r} s ({100 * jitter[worst]:.3g} % off, max_jitter={max_jitter}); "
+                f"sampling is not uniform: interval {worst} is {worst_dt!r} s against a median "
+                f"of {nominal!r} s ({100 * worst_jitter:.3g} % off, max_jitter={max_jitter}); "
                 "resample the record to a uniform rate, or pass max_jitter=None to accept "
                 "non-uniform sampling"
             )
     return TimelineCheck(t, tuple(sorted(repaired)), problem)
+
+
+#: Intervals per block of the chunked passes (0.5 MB of float64 temporaries).
+_BLOCK = 1 << 16
+
+
+def _interval_blocks(t: np.ndarray, block: int = _BLOCK):
+    """Yield ``(start, np.diff(t[start:start + block + 1]))``: the intervals in blocks."""
+    for s in range(0, t.size - 1, block):
+        yield s, np.diff(t[s:s + block + 1])
 
 
 def find_corrupted_bursts(x: np.ndarray, *, factor: float = 20.0) -> list[tuple[int, int]]:
@@ -141,7 +170,9 @@ def find_corrupted_bursts(x: np.ndarray, *, factor: float = 20.0) -> list[tuple[
     -----
     A corrupted burst (App. B.3.1: 10-100 ms of garbage) enters and leaves with jumps of the
     order of the signal's range, while a physical position changes by at most ``v_max dt``
-    per sample. Jumps closer together than 200 samples are merged into one burst.
+    per sample. Jumps closer together than 200 samples are merged into one burst. Memory:
+    the non-zero step sizes (at most 8 B a sample, for the quantile), filled and scanned
+    in blocks.
 
     Examples
     --------
@@ -150,16 +181,25 @@ def find_corrupted_bursts(x: np.ndarray, *, factor: float = 20.0) -> list[tuple[
     [(500, 520)]
     """
     x = np.asarray(x, dtype=float)
-    step = np.abs(np.diff(x))
-    if step.size < 10:
+    if x.size - 1 < 10:
         return []
-    moving = step[step > 0]
-    if moving.size < 10:
+    # memory: the moving step sizes (at most 8 B a sample), filled block by block
+    count = sum(int(np.count_nonzero(np.abs(step) > 0)) for _, step in _interval_blocks(x))
+    if count < 10:
         return []
+    moving = np.empty(count)
+    filled = 0
+    for _, step in _interval_blocks(x):
+        step = np.abs(step)
+        part = step[step > 0]
+        moving[filled:filled + part.size] = part
+        filled += part.size
     # quantile of the moving steps: a record that rests most of the time must not make every
-    # motion look like a jump
-    threshold = factor * float(np.quantile(moving, 0.9))
-    jumps = np.flatnonzero(step > threshold)
+    # motion look like a jump (partitioned in place: the scratch array is ours)
+    threshold = factor * float(np.quantile(moving, 0.9, overwrite_input=True))
+    del moving
+    jumps = np.concatenate([np.flatnonzero(np.abs(step) > threshold) + s
+                            for s, step in _interval_blocks(x)])
     if jumps.size == 0:
         return []
     bursts: list[tuple[int, int]] = []
