@@ -93,8 +93,8 @@ import numpy as np
 from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
-from driveid.identify.forced import SineResponse, fit_sine_response
 from driveid.identify.pho import delay_factors
+from driveid.identify.sine_fit import SineResponse, fit_sine_response
 from driveid.io.record import Record
 
 __all__ = ["SineHarmonics", "sine_harmonics", "estimate_forced_friction", "SineGridTest",
