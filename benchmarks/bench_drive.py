@@ -10,6 +10,13 @@ W3  three-body drive (motor, backlash, arm, shaft, tool) under delayed PD, 5 s: 
     each is measured against a much finer run of itself).
 W3x100  100 such drives with inertias, friction, stiffnesses and gains drawn +-30 %:
     simulate_drive_batch vs a Python loop of simulate_drive over the same drives.
+W3 fixed-step  ours vs a no-overhead numba port of the same fixed-step RK4 for W3 alone
+    (w3_rk4_baseline: state in scalars, the delay by a ring buffer read by cubic Hermite,
+    stick-slip and backlash contact inline, events located by our rule: Illinois secant on
+    the step length; also run with the switches taken at the step end, unlocated), error on
+    all six states, relative (max over states of max|err| / max|state|), each against a
+    much finer run of itself; ours/baseline time at the loosest step of each reaching
+    4e-5 and 1e-6. ``python benchmarks/bench_drive.py w3base`` runs this part alone.
 
 Accuracy is measured against a much finer run of our own in the same process. Ratios, not
 absolute times, are the result (this machine is shared). Run: python benchmarks/bench_drive.py
@@ -247,6 +254,275 @@ def baselines(t_exact, exact):
           f"output {t_fresh * 1e3:7.1f} ms -> {t_fresh / t_loop:.2f}x")
 
 
+# ---------------------------------------------------------------- W3 no-overhead baseline
+# W3 with every scale 1 (w3_params()), hard-coded as a user's special-purpose loop would be
+W3_JM, W3_CM, W3_FM = 0.0115, 1e-3, 0.02  # motor: inertia, viscous, Coulomb (= static)
+W3_JA = 0.0035  # arm: no friction (so no velocity-sign events)
+W3_JT, W3_CT, W3_FT = 0.016, 2e-3, 0.05  # tool
+W3_KC, W3_CC, W3_GAP = 1e4, 2.0, 0.01  # backlash contact (no tension), gap +-0.01 rad
+W3_KS, W3_CS = 50.0, 0.05  # shaft arm-tool
+W3_P, W3_D, W3_DELAY, W3_REF = 5.0, 0.3, 0.01, 1.0  # PD on the motor, delayed
+
+
+@njit(cache=True, inline="always")
+def _w3_torque(o, h, pre, n):
+    """Delayed PD torque at offset ``o`` into the grid step; n: the two Hermite nodes
+    (x, v, a at grid points k - N and k - N + 1, N = delay / h) or ``pre`` before the delay."""
+    if pre:
+        return W3_P * W3_REF
+    s = o / h
+    s2 = s * s
+    s3 = s2 * s
+    h00 = 2 * s3 - 3 * s2 + 1
+    h10 = (s3 - 2 * s2 + s) * h
+    h01 = -2 * s3 + 3 * s2
+    h11 = (s3 - s2) * h
+    xd = h00 * n[0] + h10 * n[1] + h01 * n[3] + h11 * n[4]
+    vd = h00 * n[1] + h10 * n[2] + h01 * n[4] + h11 * n[5]
+    return W3_P * (W3_REF - xd) - W3_D * vd
+
+
+@njit(cache=True, inline="always")
+def _w3_forces(y, tq, cm):
+    """Applied force on motor, arm, tool (but their own friction)."""
+    d = y[0] - y[1]
+    dv = y[3] - y[4]
+    fc = 0.0
+    if cm > 0:
+        fc = W3_KC * (d - W3_GAP) + W3_CC * dv
+    elif cm < 0:
+        fc = W3_KC * (d + W3_GAP) + W3_CC * dv
+    fs = W3_KS * (y[1] - y[2]) + W3_CS * (y[4] - y[5])
+    return tq - fc, fc - fs, fs
+
+
+@njit(cache=True, inline="always")
+def _w3_rhs(y, tq, sm, st, cm):
+    fm, fa, ft = _w3_forces(y, tq, cm)
+    am = 0.0 if sm == 0 else (fm - W3_CM * y[3] - W3_FM * sm) / W3_JM
+    at = 0.0 if st == 0 else (ft - W3_CT * y[5] - W3_FT * st) / W3_JT
+    return (y[3] if sm != 0 else 0.0, y[4], y[5] if st != 0 else 0.0, am, fa / W3_JA, at)
+
+
+@njit(cache=True, inline="always")
+def _w3_rk4(y, o, s, h, pre, n, sm, st, cm):
+    """RK4 step of size s from offset o in fixed modes (tuples of scalars: registers)."""
+    k1 = _w3_rhs(y, _w3_torque(o, h, pre, n), sm, st, cm)
+    tq = _w3_torque(o + 0.5 * s, h, pre, n)
+    y2 = (y[0] + 0.5 * s * k1[0], y[1] + 0.5 * s * k1[1], y[2] + 0.5 * s * k1[2],
+          y[3] + 0.5 * s * k1[3], y[4] + 0.5 * s * k1[4], y[5] + 0.5 * s * k1[5])
+    k2 = _w3_rhs(y2, tq, sm, st, cm)
+    y3 = (y[0] + 0.5 * s * k2[0], y[1] + 0.5 * s * k2[1], y[2] + 0.5 * s * k2[2],
+          y[3] + 0.5 * s * k2[3], y[4] + 0.5 * s * k2[4], y[5] + 0.5 * s * k2[5])
+    k3 = _w3_rhs(y3, tq, sm, st, cm)
+    y4 = (y[0] + s * k3[0], y[1] + s * k3[1], y[2] + s * k3[2],
+          y[3] + s * k3[3], y[4] + s * k3[4], y[5] + s * k3[5])
+    k4 = _w3_rhs(y4, _w3_torque(o + s, h, pre, n), sm, st, cm)
+    c = s / 6.0
+    return (y[0] + c * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]),
+            y[1] + c * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]),
+            y[2] + c * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2]),
+            y[3] + c * (k1[3] + 2 * k2[3] + 2 * k3[3] + k4[3]),
+            y[4] + c * (k1[4] + 2 * k2[4] + 2 * k3[4] + k4[4]),
+            y[5] + c * (k1[5] + 2 * k2[5] + 2 * k3[5] + k4[5]))
+
+
+@njit(cache=True, inline="always")
+def _w3_phi(e, y, tq, sm, st, cm):
+    """Event function e (0 motor, 1 tool, 2 contact): >= 0 while the mode holds."""
+    if e == 2:
+        dv = y[3] - y[4]
+        dp = y[0] - y[1] - W3_GAP
+        dm = -W3_GAP - y[0] + y[1]
+        gp = min(dp, W3_KC * dp + W3_CC * dv)
+        gm = min(dm, W3_KC * dm - W3_CC * dv)
+        return -max(gp, gm) if cm == 0 else (gp if cm > 0 else gm)
+    m = sm if e == 0 else st
+    if m != 0:
+        return y[3 + 2 * e] * m
+    fm, _fa, ft = _w3_forces(y, tq, cm)
+    f, band = (fm, W3_FM) if e == 0 else (ft, W3_FT)
+    return min(f + band, band - f)
+
+
+@njit(cache=True, inline="always")
+def _w3_switch(f, v, m, band):
+    """New mode of a body with applied force f (stick inside the static band)."""
+    if m == 0:
+        return 1 if f > band else (-1 if f < -band else 0)
+    if v * m > 0.0:
+        return m
+    return 0 if -band <= f <= band else (1 if f > 0.0 else -1)
+
+
+@njit(cache=True)
+def w3_rk4_baseline(h_out, n_out, n_sub, out, locate=True):
+    """No-overhead baseline of W3: fixed-step RK4, state in scalars (tuples), the delay by a
+    ring buffer of (x, v, a) of the motor read by cubic Hermite (as ours), stick-slip of
+    motor and tool and the backlash contact inline; with ``locate`` the first sign change of
+    the event functions inside a step is located by the Illinois secant on the step length
+    (our rule), else the mode switches at the step end. Fills out (6, n_out): x, v."""
+    h = h_out / n_sub
+    big_n = int(round(W3_DELAY / h))  # the step divides the delay, N >= 2 (node k-N+1 < k)
+    ring = np.zeros((3, big_n + 2))
+    y = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    sm, st, cm = 0, 0, 0
+    n = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    tq0 = W3_P * W3_REF
+    fm, _fa, ft = _w3_forces(y, tq0, cm)
+    sm = _w3_switch(fm, 0.0, 0, W3_FM)
+    st = _w3_switch(ft, 0.0, 0, W3_FT)
+    n_steps = (n_out - 1) * n_sub
+    for k in range(n_steps + 1):
+        pre = k < big_n
+        if not pre:
+            j0 = (k - big_n) % (big_n + 2)
+            j1 = (k - big_n + 1) % (big_n + 2)
+            n = (ring[0, j0], ring[1, j0], ring[2, j0], ring[0, j1], ring[1, j1], ring[2, j1])
+        # history node k (acceleration in the current modes); node k + 1 - N <= k is read
+        j = k % (big_n + 2)
+        ring[0, j] = y[0]
+        ring[1, j] = y[3]
+        ring[2, j] = _w3_rhs(y, _w3_torque(0.0, h, pre, n), sm, st, cm)[3]
+        if k % n_sub == 0:
+            o = k // n_sub
+            for i in range(6):
+                out[i, o] = y[i]
+        if k == n_steps:
+            break
+        off = 0.0
+        rest = h
+        for _ev in range(100):
+            yn = _w3_rk4(y, off, rest, h, pre, n, sm, st, cm)
+            tq_end = _w3_torque(off + rest, h, pre, n)
+            first = -1
+            s_first = rest
+            for e in range(3):
+                if _w3_phi(e, yn, tq_end, sm, st, cm) >= 0.0:
+                    continue
+                if not locate:
+                    first = e
+                    break
+                lo, hi = 0.0, rest
+                flo = max(_w3_phi(e, y, _w3_torque(off, h, pre, n), sm, st, cm), 0.0)
+                fhi = _w3_phi(e, yn, tq_end, sm, st, cm)
+                side = 0
+                for _it in range(100):
+                    s = (lo * (-fhi) + hi * flo) / (flo - fhi) if flo - fhi > 0.0 else lo
+                    if not (lo < s < hi):
+                        s = 0.5 * (lo + hi)
+                    ym = _w3_rk4(y, off, s, h, pre, n, sm, st, cm)
+                    fmid = _w3_phi(e, ym, _w3_torque(off + s, h, pre, n), sm, st, cm)
+                    if fmid < 0.0:
+                        hi, fhi = s, fmid
+                        if side == -1:
+                            flo *= 0.5
+                        side = -1
+                    else:
+                        lo, flo = s, fmid
+                        if side == 1:
+                            fhi *= 0.5
+                        side = 1
+                    if hi - lo <= 1e-15 * h:
+                        break
+                if first < 0 or hi < s_first:
+                    s_first, first = hi, e
+            if first < 0:
+                y = yn
+                break
+            if s_first < rest:
+                yn = _w3_rk4(y, off, s_first, h, pre, n, sm, st, cm)
+            off += s_first
+            rest -= s_first
+            # the switch at the event: velocity zero, stick or slip, contact entry or exit
+            tq = _w3_torque(off, h, pre, n)
+            y = yn
+            if sm == 0:
+                y = (y[0], y[1], y[2], 0.0, y[4], y[5])
+            if st == 0:
+                y = (y[0], y[1], y[2], y[3], y[4], 0.0)
+            for _r in range(3):
+                fm, _fa, ft = _w3_forces(y, tq, cm)
+                new = _w3_switch(fm, y[3], sm, W3_FM)
+                if sm != 0 and y[3] * sm <= 0.0:
+                    y = (y[0], y[1], y[2], 0.0, y[4], y[5])
+                sm = new
+                new = _w3_switch(ft, y[5], st, W3_FT)
+                if st != 0 and y[5] * st <= 0.0:
+                    y = (y[0], y[1], y[2], y[3], y[4], 0.0)
+                st = new
+                dv = y[3] - y[4]
+                dp = y[0] - y[1] - W3_GAP
+                dm = -W3_GAP - y[0] + y[1]
+                gp = min(dp, W3_KC * dp + W3_CC * dv)
+                gm = min(dm, W3_KC * dm - W3_CC * dv)
+                if cm == 0:
+                    cm = 1 if gp > 0.0 else (-1 if gm > 0.0 else 0)
+                elif (cm > 0 and gp <= 0.0) or (cm < 0 and gm <= 0.0):
+                    cm = 0
+            if rest <= 1e-15 * h:
+                break
+    return out
+
+
+def _all_state_error(x, v, ref_x, ref_v):
+    """All states, relative: max over the six states of max|err| / max|reference state|."""
+    return max(np.max(np.abs(a - b)) / np.max(np.abs(b))
+               for a, b in zip([*x, *v], [*ref_x, *ref_v], strict=True))
+
+
+def w3_fixed_step_study(targets=(4e-5, 1e-6)):
+    """W3: ours against the no-overhead baseline at matched all-state accuracy (issue 18)."""
+    print("== W3 vs a no-overhead numba fixed-step RK4 of W3 (error: all six states, relative:"
+          " max over states of max|err| / max|state|, 5 s at 1 kHz, each against a much finer"
+          " run of itself)")
+    p = w3_params()
+    b = p.bodies
+    assert (b[0].J, b[0].c_mean, b[0].fk_mean, b[1].J, b[2].J, b[2].c_mean, b[2].fk_mean,
+            p.links[0].k, p.links[1].k, p.feedback.P, p.feedback.delay) == (
+        W3_JM, W3_CM, W3_FM, W3_JA, W3_JT, W3_CT, W3_FT, W3_KC, W3_KS, W3_P, W3_DELAY)
+    n_out = 5001
+    buf = np.empty((6, n_out))
+    w3_rk4_baseline(1e-3, n_out, 10, buf)  # compile
+    w3_rk4_baseline(1e-3, n_out, 10, buf, False)
+    fine_sub = 400  # h = 2.5 us
+    ref_b = w3_rk4_baseline(1e-3, n_out, fine_sub, np.empty((6, n_out)))
+    ref_o = simulate_drive(p, duration=5.0, max_step=1e-3 / fine_sub)
+    cross = _all_state_error(ref_b[:3], ref_b[3:], ref_o.x, ref_o.v)
+    print(f"  the two fine runs (h = {1e3 / fine_sub:g} us) agree to {cross:.1e}: the same model")
+    rows = []
+    for n_sub in (2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 25, 32, 40, 50):
+        h = 1e-3 / n_sub
+        t_b, _ = best_of(lambda n_sub=n_sub: w3_rk4_baseline(1e-3, n_out, n_sub, buf), 3)
+        e_b = _all_state_error(buf[:3], buf[3:], ref_b[:3], ref_b[3:])
+        t_u, _ = best_of(lambda n_sub=n_sub: w3_rk4_baseline(1e-3, n_out, n_sub, buf, False), 3)
+        e_u = _all_state_error(buf[:3], buf[3:], ref_b[:3], ref_b[3:])
+        simulate_drive(p, duration=5.0, max_step=h)
+        t_o, o = best_of(lambda h=h: simulate_drive(p, duration=5.0, max_step=h), 3)
+        e_o = _all_state_error(o.x, o.v, ref_o.x, ref_o.v)
+        rows.append((n_sub, t_b, e_b, t_u, e_u, t_o, e_o))
+        print(f"  h = 1/{n_sub:2d} ms: baseline {t_b * 1e3:6.1f} ms err {e_b:.1e} | unlocated "
+              f"{t_u * 1e3:6.1f} ms err {e_u:.1e} | ours {t_o * 1e3:6.1f} ms err {e_o:.1e}"
+              f" | per step ours/baseline {t_o / t_b:4.1f}x")
+        if e_b <= min(targets) and e_o <= min(targets):
+            break
+    for tgt in targets:
+        loosest = {}
+        for name, ti, ei in (("baseline", 1, 2), ("unlocated", 3, 4), ("ours", 5, 6)):
+            ok = [r for r in rows if r[ei] <= tgt]
+            loosest[name] = (ok[0][0], ok[0][ti]) if ok else None
+        if loosest["ours"] and loosest["baseline"]:
+            (n_o, t_o), (n_b, t_b) = loosest["ours"], loosest["baseline"]
+            un = loosest["unlocated"]
+            best_u = min(r[4] for r in rows)
+            un_txt = (f"unlocated needs h = 1/{un[0]} ms, {un[1] * 1e3:.1f} ms" if un
+                      else f"unlocated does not reach it by h = 1/{rows[-1][0]} ms (best "
+                      f"{best_u:.0e})")
+            print(f"  all-state error <= {tgt:.0e}: ours h = 1/{n_o} ms {t_o * 1e3:.1f} ms, "
+                  f"baseline h = 1/{n_b} ms {t_b * 1e3:.1f} ms -> ours/baseline "
+                  f"{t_o / t_b:.2f}x (acceptance <= 1x); {un_txt}")
+
+
 def main():
     print("== W1 free decay with stiction, 20 s at 1 kHz")
     drive = DriveParams(bodies=(BodyParams(**W1),))
@@ -326,7 +602,13 @@ def main():
     print(f"  batch, one thread      {t_b * 1e3:8.1f} ms   loop/batch {t_l / t_b:.2f}x")
     print(f"  batch, parallel=True   {t_p * 1e3:8.1f} ms   loop/batch {t_l / t_p:.2f}x"
           f"   max|batch - loop| {same:.0e}")
+    w3_fixed_step_study()
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+
+    if sys.argv[1:] == ["w3base"]:  # the W3 fixed-step comparison alone
+        w3_fixed_step_study()
+    else:
+        main()

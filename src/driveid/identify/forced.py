@@ -77,7 +77,7 @@ from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.pho import delay_factors
-from driveid.identify.sine_fit import SineResponse, fit_sine_response  # noqa: F401 (re-export)
+from driveid.identify.sine_fit import SineResponse, fit_sine_response, record_list  # noqa: F401 (re-export)
 from driveid.io.record import Record
 
 # SineResponse and fit_sine_response live in driveid.identify.sine_fit (shared with
@@ -153,12 +153,7 @@ def _fit_delay(solve, Aw, Lt, w, bounds, p):
 
 def _estimate(records, omega, P, D, delay, K_known, settle_tol, min_periods, method,
               delay_bounds=None):
-    if isinstance(records, Record):
-        records = [records]
-    records = list(records)
-    for i, rec in enumerate(records):
-        if not isinstance(rec, Record):
-            raise ParameterError(f"records[{i}] must be a Record; got {type(rec).__name__}")
+    records = record_list(records)
     if not records:
         raise IdentificationError("no records given; pass runs at 2 or more frequencies")
     if K_known is not None and not (isinstance(K_known, (int, float)) and math.isfinite(K_known)):

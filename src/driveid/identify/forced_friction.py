@@ -94,7 +94,7 @@ from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.pho import delay_factors
-from driveid.identify.sine_fit import SineResponse, fit_sine_response
+from driveid.identify.sine_fit import SineResponse, fit_sine_response, record_list
 from driveid.io.record import Record
 
 __all__ = ["SineHarmonics", "sine_harmonics", "estimate_forced_friction", "SineGridTest",
@@ -438,12 +438,7 @@ def estimate_forced_friction(
     >>> [round(est.value(k), 6) for k in ("c_mean", "fk_mean", "c_delta", "fk_delta")]
     [0.06, 0.01, 0.02, 0.004]
     """
-    if isinstance(records, Record):
-        records = [records]
-    records = list(records)
-    for i, rec in enumerate(records):
-        if not isinstance(rec, Record):
-            raise ParameterError(f"records[{i}] must be a Record; got {type(rec).__name__}")
+    records = record_list(records)
     if len(records) < 3:
         raise IdentificationError(
             "describing-function friction needs >= 3 sinusoidal runs (frequencies × "

@@ -18,7 +18,7 @@ from scipy.optimize import minimize_scalar
 from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.io.record import Record
 
-__all__ = ["MAX_INPUT_DISTORTION", "SineResponse", "fit_sine_response"]
+__all__ = ["MAX_INPUT_DISTORTION", "SineResponse", "fit_sine_response", "record_list"]
 
 #: Relative rms residual of the input sine fit above which u is "not sinusoidal" [-].
 MAX_INPUT_DISTORTION = 0.05
@@ -302,3 +302,20 @@ def fit_sine_response(
         input_distortion=input_distortion,
         response_distortion=response_distortion,
     )
+
+
+def record_list(records: Record | object) -> list[Record]:
+    """Return one Record or a sequence of them as a list, refusing anything else.
+
+    Raises
+    ------
+    ParameterError
+        An element that is not a :class:`~driveid.io.record.Record`.
+    """
+    if isinstance(records, Record):
+        return [records]
+    records = list(records)
+    for i, rec in enumerate(records):
+        if not isinstance(rec, Record):
+            raise ParameterError(f"records[{i}] must be a Record; got {type(rec).__name__}")
+    return records

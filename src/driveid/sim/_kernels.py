@@ -13,6 +13,13 @@ Kernels:
   with stiction for many parameter sets (the Monte-Carlo path).
 
 All arrays are float64 / int64; the caller validates everything.
+
+Speed (issue 18, docs/performance.md): the time loop (:func:`_integrate`) is compiled
+without reference counting and with its per-step helpers inlined, on separate stage vectors
+(an array view or a call with array arguments in the loop costs an atomic reference-count
+update or ~100 words of arguments: three quarters of the step time before); the first RK4
+stage at a point is computed once and serves every trial step of the event search and the
+delay history; the forces at a step's end are computed only while a body is stuck.
 """
 
 from __future__ import annotations
@@ -21,6 +28,12 @@ import math
 
 import numpy as np
 from numba import njit, prange
+from numba.core import cpu as _numba_cpu
+
+# The time loop allocates nothing, so it is compiled without numba's reference counting
+# (``_nrt=False``, a private option: ~4x per step, the incref/decref calls dominated). Should a
+# numba release drop the option, the kernels compile as usual, only slower.
+_NO_REFCOUNT = {"_nrt": False} if hasattr(_numba_cpu.CPUTargetOptions, "_nrt") else {}
 
 # body modes
 LOCKED = 2
@@ -39,8 +52,10 @@ TOO_MANY_EVENTS = 2
 @njit(cache=True, inline="always")
 def _interp(arr, row, tau, fs):
     """Linear interpolation of ``arr[row]``, sampled at ``k/fs`` (held beyond the ends)."""
-    pos = tau * fs
     n = arr.shape[1]
+    if n == 1:  # a constant input (one column)
+        return arr[row, 0]
+    pos = tau * fs
     if pos <= 0.0:
         return arr[row, 0]
     k = int(math.floor(pos))
@@ -159,7 +174,7 @@ def _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy):
 
 
 @njit(cache=True, inline="always")
-def _contact_gaps(y, nb, j, link):
+def _contact_gaps(y, nb, j, par, r):
     """Penetrations (dp, dm) and contact event functions (gp, gm) of backlash link j.
 
     g is positive while its + (or -) side is in contact. With tension allowed, contact is the
@@ -168,12 +183,12 @@ def _contact_gaps(y, nb, j, link):
     """
     rel = y[j] - y[j + 1]
     vrel = y[nb + j] - y[nb + j + 1]
-    dp = rel - link[3]
-    dm = -link[4] - rel
-    if link[5] != 0.0:
+    dp = rel - par[r, 3]
+    dm = -par[r, 4] - rel
+    if par[r, 5] != 0.0:
         return dp, dm, dp, dm
-    return (dp, dm, min(dp, link[1] * dp + link[2] * vrel),
-            min(dm, link[1] * dm - link[2] * vrel))
+    return (dp, dm, min(dp, par[r, 1] * dp + par[r, 2] * vrel),
+            min(dm, par[r, 1] * dm - par[r, 2] * vrel))
 
 
 @njit(cache=True, inline="always")
@@ -196,7 +211,7 @@ def _validity(y, nb, modes, par, work, phi):
         phi[r] = 1.0
         if par[r, 0] < LINK_BACKLASH:
             continue
-        dp, dm, gp, gm = _contact_gaps(y, nb, j, par[r])
+        dp, dm, gp, gm = _contact_gaps(y, nb, j, par, r)
         if modes[r] == 0:
             phi[r] = -max(gp, gm)
         elif modes[r] > 0:
@@ -205,34 +220,70 @@ def _validity(y, nb, modes, par, work, phi):
             phi[r] = gm
 
 
-@njit(cache=True)
-def _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, stage, out, phi):
-    """One RK4 step of size ``s`` in fixed modes; then forces and event functions at its end."""
+@njit(cache=True, inline="always")
+def _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1, k2, k3, k4, ys,
+          out, phi, any_stuck):
+    """One RK4 step of size ``s`` in fixed modes from ``y``; then the event functions at its end.
+
+    ``k1`` is the derivative at ``y``, computed once per start point and reused by every
+    trial step of the event search; the forces at the end are needed only when a body is
+    stuck (no other event function reads them).
+
+    Inlined into :func:`_integrate` (compiled without reference counting), with separate
+    stage vectors: array views, and calls with array arguments, in the hot loop cost an
+    atomic reference-count update or ~100 words of arguments each (most of the step time,
+    profiled).
+    """
     ny = y.shape[0]
-    for q in range(4):
-        if q == 0:
-            for i in range(ny):
-                stage[4, i] = y[i]
-            ts = tau
-        else:
-            a = s if q == 3 else 0.5 * s
-            for i in range(ny):
-                stage[4, i] = y[i] + a * stage[q - 1, i]
-            ts = tau + a
-        _deriv(ts, stage[4], nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, stage[q])
+    a = 0.5 * s
     for i in range(ny):
-        out[i] = y[i] + s / 6.0 * (stage[0, i] + 2.0 * stage[1, i] + 2.0 * stage[2, i]
-                                   + stage[3, i])
+        ys[i] = y[i] + a * k1[i]
+    _deriv(tau + a, ys, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k2)
+    for i in range(ny):
+        ys[i] = y[i] + a * k2[i]
+    _deriv(tau + a, ys, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k3)
+    for i in range(ny):
+        ys[i] = y[i] + s * k3[i]
+    _deriv(tau + s, ys, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k4)
+    for i in range(ny):
+        out[i] = y[i] + s / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     # stuck and locked bodies keep their position exactly
     for i in range(nb):
         if modes[i] == LOCKED or modes[i] == STUCK:
             out[i] = y[i]
             out[nb + i] = 0.0
-    _forces(tau + s, out, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
+    if any_stuck:
+        _forces(tau + s, out, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
     _validity(out, nb, modes, par, work, phi)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
+def _grid_point(step, t, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1, fbb):
+    """Store the feedback body's history at grid point ``step``; return (command, raw command).
+
+    Its acceleration comes from the derivative there, which is also the first RK4 stage
+    (into ``k1``); the raw (unsaturated) command at ``t`` feeds the safety abort.
+    """
+    nl = nb - 1
+    fbr = nb + nl
+    hist[0, step] = y[fbb]
+    hist[1, step] = y[nb + fbb]
+    cmd = _deriv(t, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1)
+    hist[2, step] = k1[nb + fbb]
+    xd, vd = _delayed(t, par[fbr, 4], h, hist, x0b, v0b, y[fbb], y[nb + fbb])
+    raw = par[fbr, 2] * (_interp(inp, nb, t, fs_in) - xd) - par[fbr, 3] * vd
+    return cmd, raw
+
+
+@njit(cache=True, inline="always")
+def _any_stuck(modes, nb):
+    for i in range(nb):
+        if modes[i] == STUCK:
+            return True
+    return False
+
+
+@njit(cache=True, **_NO_REFCOUNT)
 def _impulse(y, nb, j, modes, par, side, pen, counts, energy_jump):
     """Newton impact on link j: relative velocity -> -e·(relative velocity), momentum kept.
 
@@ -264,7 +315,7 @@ def _impulse(y, nb, j, modes, par, side, pen, counts, energy_jump):
             modes[i] = new
 
 
-@njit(cache=True)
+@njit(cache=True, **_NO_REFCOUNT)
 def _resolve(y, nb, modes, par, work, counts, energy_jump):
     """Switch every mode whose event function is negative (or a body at v = 0).
 
@@ -299,7 +350,7 @@ def _resolve(y, nb, modes, par, work, counts, energy_jump):
         r = nb + j
         if par[r, 0] < LINK_BACKLASH:
             continue
-        dp, dm, gp, gm = _contact_gaps(y, nb, j, par[r])
+        dp, dm, gp, gm = _contact_gaps(y, nb, j, par, r)
         m = modes[r]
         if m == 0:
             side = 1 if gp > 0.0 else (-1 if gm > 0.0 else 0)
@@ -340,16 +391,19 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
     nl = nb - 1
     fbr = nb + nl
     ny = 2 * nb + 3
-    h = 1.0 / (fs_in * n_sub)
     n_steps = (n_out - 1) * n_sub
     y = y0.copy()
     modes = modes0.copy()
     work = np.zeros(nb + nl)
-    stage = np.zeros((5, ny))
+    k1 = np.zeros(ny)
+    k2 = np.zeros(ny)
+    k3 = np.zeros(ny)
+    k4 = np.zeros(ny)
+    ys = np.zeros(ny)
     ytry = np.zeros(ny)
     yend = np.zeros(ny)
-    dy = np.zeros(ny)
     phi0 = np.zeros(nb + nl)
+    phiy = np.zeros(nb + nl)
     phi1 = np.zeros(nb + nl)
     counts = np.zeros(2, dtype=np.int64)
     jump = jump0.copy()
@@ -360,8 +414,29 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
     has_fb = par[fbr, 0] != 0.0
     fbb = int(par[fbr, 1]) if has_fb else 0
     hist = np.zeros((3, n_steps + 2 if has_fb else 2))
-    x0b = y0[fbb]
-    v0b = y0[nb + fbb]
+    status, abort_index, abort_value = _integrate(
+        y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume, n_steps, work, k1,
+        k2, k3, k4, ys, ytry, yend, phi0, phiy, phi1, counts, jump, x_out, v_out, cmd_out,
+        e_out, hist, y0[fbb], y0[nb + fbb])
+    return x_out, v_out, cmd_out, e_out, counts, status, abort_index, abort_value, modes
+
+
+@njit(cache=True, **_NO_REFCOUNT)
+def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume, n_steps,
+               work, k1, k2, k3, k4, ys, ytry, yend, phi0, phiy, phi1, counts, jump, x_out,
+               v_out, cmd_out, e_out, hist, x0b, v0b):
+    """Run the time loop of :func:`drive_kernel` on its preallocated arrays.
+
+    Compiled without reference counting (``_nrt=False``: it allocates nothing) and with
+    every per-step helper inlined. Returns (status, abort_index, abort_value).
+    """
+    nb = (modes.shape[0] + 1) // 2
+    nl = nb - 1
+    fbr = nb + nl
+    ny = 2 * nb + 3
+    h = 1.0 / (fs_in * n_sub)
+    has_fb = par[fbr, 0] != 0.0
+    fbb = int(par[fbr, 1]) if has_fb else 0
     status = OK
     abort_index = -1
     abort_value = 0.0
@@ -378,14 +453,10 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
         counts[1] = 0
     for step in range(n_steps + 1):
         t = step * h
+        cmd = 0.0
         if has_fb:
-            # history of the feedback body at the grid point, then the safety abort
-            _deriv(t, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy)
-            hist[0, step] = y[fbb]
-            hist[1, step] = y[nb + fbb]
-            hist[2, step] = dy[nb + fbb]
-            xd, vd = _delayed(t, par[fbr, 4], h, hist, x0b, v0b, y[fbb], y[nb + fbb])
-            raw = par[fbr, 2] * (_interp(inp, nb, t, fs_in) - xd) - par[fbr, 3] * vd
+            cmd, raw = _grid_point(step, t, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b,
+                                   work, k1, fbb)
             if abs(raw) > abort_limit:
                 status = ABORTED
                 abort_index = step
@@ -393,9 +464,6 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
                 break
         if step % n_sub == 0:
             o = step // n_sub
-            cmd = 0.0
-            if has_fb:
-                cmd = _forces(t, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
             for i in range(nb):
                 x_out[i, o] = y[i]
                 v_out[i, o] = y[nb + i]
@@ -419,20 +487,28 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
         tau = t
         remaining = h
         n_ev = 0
+        fresh = has_fb  # k1 holds the derivative at (tau, y) in the current modes
         while True:
+            if not fresh:
+                _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1)
+            fresh = False
+            stuck = _any_stuck(modes, nb)
             _step(tau, y, remaining, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
-                  stage, yend, phi1)
+                  k1, k2, k3, k4, ys, yend, phi1, stuck)
             first = -1
             s_first = remaining
+            at_start = False
             for e in range(nb + nl):
                 if phi1[e] >= 0.0:
                     continue
                 # Illinois secant for the zero of phi_e(s) on [0, remaining]
-                _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
-                _validity(y, nb, modes, par, work, phi0)
+                if not at_start:
+                    _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
+                    _validity(y, nb, modes, par, work, phiy)
+                    at_start = True
                 lo = 0.0
                 hi = remaining
-                flo = max(phi0[e], 0.0)
+                flo = max(phiy[e], 0.0)
                 fhi = phi1[e]
                 side = 0
                 for _it in range(100):
@@ -440,7 +516,7 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
                     if not (lo < s < hi):
                         s = 0.5 * (lo + hi)
                     _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
-                          stage, ytry, phi0)
+                          k1, k2, k3, k4, ys, ytry, phi0, stuck)
                     fm = phi0[e]
                     if fm < 0.0:
                         hi = s
@@ -466,7 +542,7 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
                 break
             # step to just past the event, then switch modes there
             _step(tau, y, s_first, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
-                  stage, ytry, phi0)
+                  k1, k2, k3, k4, ys, ytry, phi0, stuck)
             for i in range(ny):
                 y[i] = ytry[i]
             tau += s_first
@@ -485,7 +561,7 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
                 break
         if status != OK:
             break
-    return x_out, v_out, cmd_out, e_out, counts, status, abort_index, abort_value, modes
+    return status, abort_index, abort_value
 
 
 @njit(cache=True)
