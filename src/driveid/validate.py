@@ -1,7 +1,7 @@
 r"""Model validation: simulate an identified model on a record and judge the residuals.
 
 Like MATLAB's ``compare``/``resid``: :func:`compare` simulates the identified model with the
-record's input (here a free decay: no input) and initial state, and reports
+record's input and initial state, and reports
 
 * the fit percentage (normalised root-mean-square error)
   ``fit = 100·(1 - ‖y - ŷ‖/‖y - mean(y)‖)`` [%];
@@ -10,13 +10,25 @@ record's input (here a free decay: no input) and initial state, and reports
   statistic ``Q = n(n+2) Σ r_k²/(n-k)`` against χ²(m), and the fraction of ``r_k`` outside
   the ``±1.96/√n`` band.
 
-Supported estimates: those of a free decay with ``omega0``, ``zeta_plus``, ``zeta_minus``,
-``theta_k_mean``, ``theta_k_delta`` (``logdec-lsq``, ``logdec-thesis-*``, ``output-error``).
-The model is simulated by :func:`driveid.sim.simulate_free_decay` (de Marchi 1998,
-Eqs. 2.139-2.143, 2.156; static friction taken equal to kinetic, since a free decay does
-not identify it). The initial state is the estimate's own release for a record it was
-fitted to (``index=``), else (held-out records) the release position and time fitted with
-the model parameters fixed.
+Supported estimates (dispatch on the parameters, then on ``Estimate.method``):
+
+* free decays with ``omega0``, ``zeta_plus``, ``zeta_minus``, ``theta_k_mean``,
+  ``theta_k_delta`` (``logdec-lsq``, ``logdec-thesis-*``, ``output-error``): simulated by
+  :func:`driveid.sim.simulate_free_decay` (de Marchi 1998, Eqs. 2.139-2.143, 2.156; static
+  friction taken equal to kinetic, since a free decay does not identify it). The initial
+  state is the estimate's own release for a record it was fitted to (``index=``), else
+  (held-out records) the release position and time fitted with the model parameters fixed;
+* PHO campaigns (``pho-campaign``, ``pho-output-error``): the delayed PD loop of the record's
+  ``meta["P"]``, ``meta["D"]`` around the identified J, C, K and friction, released at rest
+  from ``meta["x0"]`` (Eq. 2.180);
+* forced response and forced PHO: the record's ``u`` drives the linear J, C, K (plus the
+  delayed loop), initial state fitted by linear least squares (Eq. 2.176);
+* IDIM (``idim-ls-*``) and Coulomb + viscous friction maps: the record's ``u`` drives the
+  identified inertia and friction (``K = 0``; a friction map's inertia is given or fitted
+  by output error), x0 the mean residual and v0 fitted from the first samples' slope.
+
+The drive models are built in :mod:`driveid._validate_models` and simulated by
+:func:`driveid.sim.simulate_drive`.
 
 Residuals of an encoder record are rounding errors; they are close to white while the
 signal moves many counts per sample and correlated on slow stretches. The whiteness test
@@ -34,6 +46,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import chi2
 
+from driveid._validate_models import FREE_DECAY, drive_model, kind_of, simulate_model
 from driveid.errors import IdentificationError
 from driveid.identify._free_response import kinetic_stop_count, response
 from driveid.identify.estimate import Estimate
@@ -42,7 +55,7 @@ from driveid.sim import OscillatorParams, simulate_free_decay
 
 __all__ = ["Comparison", "compare", "simulate", "whiteness"]
 
-_FREE_DECAY = ("omega0", "zeta_plus", "zeta_minus", "theta_k_mean", "theta_k_delta")
+_FREE_DECAY = FREE_DECAY
 #: Ljung–Box p-value below which residuals are called not white [-].
 WHITE_P = 0.01
 
@@ -68,6 +81,10 @@ class Comparison:
         Reasons to distrust the model on this record.
     unit : str
         Unit of ``y`` (``"rad"`` or ``"m"``), shown on the figure's axes.
+    model : dict
+        What was simulated: ``kind`` (``"free-decay"``, ``"pho"``, ``"forced"``, ``"idim"``,
+        ``"friction-map"``), the parameters in SI units and the initial state ``x0``
+        [m or rad], ``v0`` [m/s or rad/s] with how it was obtained.
     """
 
     t: np.ndarray
@@ -79,14 +96,20 @@ class Comparison:
     held_out: bool
     warnings: tuple[str, ...] = field(default=())
     unit: str = "rad"
+    model: Mapping[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        """Return a JSON-ready summary (no time series): fit [%], residual_rms, whiteness."""
+        """Return a JSON-ready summary (no time series): fit [%], residual_rms, whiteness.
+
+        ``prediction_error`` is the residual rms of a held-out record, else None.
+        """
         w = dict(self.whiteness)
         w["acf"] = [float(a) for a in w["acf"]]
-        return {"fit": self.fit, "residual_rms": self.residual_rms, "whiteness": w,
+        return {"fit": self.fit, "residual_rms": self.residual_rms,
+                "prediction_error": self.residual_rms if self.held_out else None,
+                "whiteness": w,
                 "held_out": self.held_out, "n": int(self.t.size),
-                "warnings": list(self.warnings)}
+                "warnings": list(self.warnings), "model": dict(self.model)}
 
     def plot(self, ax: Any = None) -> Any:
         """Overlay measured and simulated response, residuals and their autocorrelation.
@@ -164,12 +187,7 @@ def whiteness(residual: np.ndarray, lags: int = 20) -> dict[str, Any]:
 
 
 def _base(estimate: Estimate) -> list[float]:
-    missing = [n for n in _FREE_DECAY if n not in estimate]
-    if missing:
-        raise IdentificationError(
-            f"validation of a {estimate.method!r} estimate needs the free-decay parameters "
-            f"{list(_FREE_DECAY)}; it lacks {missing}. Supported: logdec and output-error "
-            "estimates")
+    kind_of(estimate)  # refuses, in one line, what no model here can simulate
     return [estimate.value(n) for n in _FREE_DECAY]
 
 
@@ -197,32 +215,7 @@ def _fit_release(t, y, base):
     return float(sol.x[0]), float(sol.x[1])
 
 
-def simulate(record: Record, estimate: Estimate, *, index: int | None = None
-             ) -> tuple[np.ndarray, bool]:
-    """Return the identified model's simulated position at the record's sample times.
-
-    Parameters
-    ----------
-    record : Record
-        The measured record (its times and, for a held-out record, its initial state).
-    estimate : Estimate
-        A free-decay estimate (see module docstring).
-    index : int, optional
-        Which of the estimate's records this is (uses its fitted release, drift and
-        ``x_ref``); None: a held-out record, whose release is fitted here.
-
-    Returns
-    -------
-    y_hat : ndarray, shape (n,)
-        Simulated position [m or rad].
-    held_out : bool
-        True when the release was fitted here.
-
-    Raises
-    ------
-    IdentificationError
-        An estimate without free-decay parameters, or ``index`` out of range.
-    """
+def _simulate_free_decay(record, estimate, index):
     base = _base(estimate)
     t = np.asarray(record.t, float)
     x_ref = float(estimate.data_used.get("x_ref", 0.0) or 0.0)
@@ -248,34 +241,89 @@ def simulate(record: Record, estimate: Estimate, *, index: int | None = None
         sim = simulate_free_decay(params, x0=x_r, duration=float(local[-1]) + 1e-9,
                                   t=local)
         y_hat[after] = sim.record.x
-    return y_hat + x_ref + drift * (t - t[0]), held_out
+    summary = {"kind": "free-decay", **dict(zip(_FREE_DECAY, base, strict=True)),
+               "x0": x_r + x_ref, "v0": 0.0, "t_release": t_r,
+               "initial_state": "fitted release (held out)" if held_out
+               else "the estimate's release"}
+    return y_hat + x_ref + drift * (t - t[0]), held_out, summary
+
+
+def _simulate(record, estimate, index, inertia):
+    """Return the simulated position, held-out flag and model summary (see :func:`simulate`)."""
+    if not isinstance(record, Record):
+        raise IdentificationError(f"record must be a Record; got {type(record).__name__}")
+    if kind_of(estimate) == "free-decay":
+        return _simulate_free_decay(record, estimate, index)
+    model = drive_model(estimate, record, index=index, inertia=inertia)
+    y_hat, state = simulate_model(model, record)
+    return y_hat, index is None, {**model.summary, **state}
+
+
+def simulate(record: Record, estimate: Estimate, *, index: int | None = None,
+             inertia: float | None = None) -> tuple[np.ndarray, bool]:
+    """Return the identified model's simulated position at the record's sample times.
+
+    Parameters
+    ----------
+    record : Record
+        The measured record: its times, its input ``u`` (forced, IDIM, friction map), its
+        gains ``meta["P"]``, ``meta["D"]`` (PHO) and its initial state.
+    estimate : Estimate
+        A supported estimate (see module docstring).
+    index : int, optional
+        Which of the estimate's records this is (a free decay uses its fitted release,
+        drift and ``x_ref``; forced PHO its gains); None: a held-out record.
+    inertia : float, optional
+        Inertia of a friction-map model [kg·m² or kg]; regressed from the record if None.
+
+    Returns
+    -------
+    y_hat : ndarray, shape (n,)
+        Simulated position [m or rad].
+    held_out : bool
+        True for a record the estimate was not computed from (``index`` None).
+
+    Raises
+    ------
+    IdentificationError
+        An estimate that cannot be simulated (the message names what is missing), or
+        ``index`` out of range.
+    RecordError
+        A record without the input ``u`` its model needs.
+    """
+    y_hat, held_out, _ = _simulate(record, estimate, index, inertia)
+    return y_hat, held_out
 
 
 def compare(record: Record, estimate: Estimate, *, index: int | None = None,
-            lags: int = 20) -> Comparison:
+            lags: int = 20, inertia: float | None = None) -> Comparison:
     """Compare a record with the simulated response of an identified model.
 
     Parameters
     ----------
     record : Record
-        Measured free decay.
+        Measured record (free decay, PHO run, forced run, or any run with its force ``u``).
     estimate : Estimate
-        Free-decay estimate (``logdec-lsq``, ``output-error`` ...).
+        Free-decay, PHO, forced-response, IDIM or friction-map estimate (module docstring).
     index : int, optional
         Position of ``record`` among the estimate's records (its fitted initial state is
         used); None for a held-out record.
     lags : int
         Autocorrelation lags of the whiteness test [-].
+    inertia : float, optional
+        Inertia of a friction-map model [kg·m² or kg]; regressed from the record if None.
 
     Returns
     -------
     Comparison
-        Fit [%], residual rms, whiteness, the series and warnings.
+        Fit [%], residual rms, whiteness, the series, what was simulated, and warnings.
 
     Raises
     ------
     IdentificationError
-        An estimate that does not describe a free decay.
+        An estimate that cannot be simulated; the message names what is missing.
+    RecordError
+        A record without the input ``u`` its model needs.
 
     Examples
     --------
@@ -289,7 +337,7 @@ def compare(record: Record, estimate: Estimate, *, index: int | None = None,
     >>> c.fit > 99, c.whiteness["white"]
     (True, True)
     """
-    y_hat, held_out = simulate(record, estimate, index=index)
+    y_hat, held_out, model = _simulate(record, estimate, index, inertia)
     y = np.asarray(record.x, float)
     resid = y - y_hat
     spread = float(np.linalg.norm(y - np.mean(y)))
@@ -297,14 +345,23 @@ def compare(record: Record, estimate: Estimate, *, index: int | None = None,
     white = whiteness(resid, lags)
     warnings = []
     if not white["white"]:
-        warnings.append(
+        message = (
             f"residuals are not white (Ljung–Box p = {white['p_value']:.2g} over "
             f"{white['lags']} lags, {100 * white['band_fraction']:.0f} % of lags outside "
-            "±1.96/√n): the model misses an effect of this record (presliding, a drift, "
-            "a second mode, forcing) or the noise is coloured (encoder rounding)")
+            "±1.96/√n): the model misses an effect of this record (presliding, backlash, a "
+            "wrong stiffness, a drift, a second mode, unmodelled forcing) or the noise is "
+            "coloured (encoder rounding)")
+        at_rest = float(np.mean(np.diff(y) == 0.0)) if y.size > 1 else 0.0
+        if at_rest > 0.2:
+            # a quantised record at rest repeats one count: its rounding error is constant
+            message += (f"; {100 * at_rest:.0f} % of the samples repeat the previous one (at "
+                        "rest), where encoder rounding is a constant residual the test "
+                        "cannot tell from a model error: validate the moving part "
+                        "(FILE@T0:T1)")
+        warnings.append(message)
     if math.isfinite(fit) and fit < 90.0:
         warnings.append(f"fit is only {fit:.1f} %: the model does not describe this record")
     return Comparison(t=np.asarray(record.t, float), y=y, y_hat=y_hat, fit=fit,
                       residual_rms=float(math.sqrt(np.mean(resid**2))), whiteness=white,
                       held_out=held_out, warnings=tuple(warnings),
-                      unit=record.units.get("x", "rad"))
+                      unit=record.units.get("x", "rad"), model=model)

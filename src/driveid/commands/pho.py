@@ -206,6 +206,11 @@ def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, 
                f"{campaign.manifest_path}")
 
 
+#: Most samples (all runs) the default ``--method auto`` fits whole: 6 runs of 3 s at 1 kHz
+#: take ~1 s of processor time, 2.5x the peak analysis (benchmarks/bench_pho_coverage.py),
+#: and the cost grows with the samples, so 500 000 take about 30 s (extrapolated).
+OE_MAX_SAMPLES = 500_000
+
 _RUN_META = ("P", "D", "x0", "x0_sign", "delay", "run_index", "units")
 
 
@@ -234,11 +239,24 @@ def _reread(records: list, record_opts: RecordOptions) -> list:
 @click.option("--allow-outside", is_flag=True,
               help="Read record files the manifest names outside its own folder (only for a "
                    "manifest you trust).")
+@click.option("--method", type=click.Choice(["auto", "oe", "peaks"]), default="auto",
+              show_default=True,
+              help="oe: whole-record fit of the delayed-PD loop to every sample of every run "
+                   "(honest error bars on encoder records); peaks: per-run peak features "
+                   "and the campaign equations; auto: oe, but peaks with --uncompensated, "
+                   f"a negative K, above {OE_MAX_SAMPLES:,} samples in all, or if the oe "
+                   "fit fails.")
+@click.option("--quantisation", default="auto", show_default=True,
+              help="Encoder step [m or rad] for the bootstrap error bars (oe): 'auto' "
+                   "detects it, 'none' treats the noise as white.")
+@click.option("--bootstrap", type=int, default=50, show_default=True,
+              help="Bootstrap repeats for quantised records (oe).")
+@click.option("--seed", type=int, default=None, help="Seed of the bootstrap (oe).")
 @record_options
 @output_options
 @clean_errors
-def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_outside,
-                        record_opts, output_opts):
+def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_outside, method,
+                        quantisation, bootstrap, seed, record_opts, output_opts):
     """Identify J, C, K and asymmetric friction from a campaign folder or manifest PATH.
 
     The record options apply to every run file (e.g. --t-start 0.2 drops a start transient,
@@ -261,9 +279,54 @@ def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_out
     K_known = manifest.K if K is None else K
     from driveid.identify.pho import estimate_pho_records
 
-    est = estimate_pho_records(records, delay=delay, K_known=K_known, units=manifest.units)
+    q = _quantisation(quantisation)
+    n_samples = sum(r.n for r in records)
+    # auto keeps the peaks where the simulated loop cannot follow: the thesis's delay-free
+    # analysis, a negative spring, or more samples than a fit takes in reasonable time
+    use_oe = method == "oe" or (method == "auto" and not uncompensated
+                                and (K_known is None or K_known >= 0)
+                                and n_samples <= OE_MAX_SAMPLES)
+    peaks = estimate_pho_records(records, delay=delay, K_known=K_known, units=manifest.units)
+    est = peaks
+    if use_oe:
+        from driveid.errors import IdentificationError, RecordError
+        from driveid.identify.pho_fit import estimate_pho_output_error
+
+        try:
+            with progress_bar(bootstrap, "bootstrap (encoder records)",
+                              quiet=output_opts.quiet) as bar:
+                est = estimate_pho_output_error(
+                    records, delay=delay, K_known=K_known, units=manifest.units,
+                    quantisation=q, bootstrap=bootstrap, rng=seed, start=peaks,
+                    progress=lambda done, total: bar.update(1))
+        except (IdentificationError, RecordError) as exc:
+            if method == "oe":
+                raise
+            est = peaks.with_warnings(f"the whole-record fit failed ({exc}); these are the "
+                                      "peak analysis's values")
     n_rej = len(manifest.runs) - len(records)
     how = ("uncompensated (delay 0)" if uncompensated else
            "delay estimated" if delay is None else f"delay {delay:g} s")
-    emit(est, output_opts, records=records, figure=lambda: plot_of(est, records),
-         header=f"{len(records)} accepted run(s), {n_rej} rejected; {how}")
+    label = "whole-record fit" if est.method == "pho-output-error" else "peak analysis"
+
+    def figure():
+        return plot_of(est, records)
+
+    emit(est, output_opts, records=records, figure=figure,
+         header=f"{len(records)} accepted run(s), {n_rej} rejected; {how}; {label}")
+
+
+def _quantisation(text: str) -> float | str | None:
+    """``auto``, ``none`` or an encoder step [m or rad]."""
+    value = text.strip().lower()
+    if value in ("auto", "none"):
+        return None if value == "none" else "auto"
+    try:
+        step = float(value)
+    except ValueError:
+        raise click.BadParameter(f"give 'auto', 'none' or a step in m or rad; got {text!r}",
+                                 param_hint="--quantisation") from None
+    if not (0 < step < math.inf):
+        raise click.BadParameter(f"the encoder step must be positive and finite; got {text!r}",
+                                 param_hint="--quantisation")
+    return step

@@ -44,9 +44,11 @@ def _index_of(record, estimate, position: int, n_files: int):
     hashes = [i.get("sha256") for i in estimate.inputs]
     if digest and digest in hashes:
         return hashes.index(digest)
-    if not any(hashes) and estimate.data_used.get("release_x") is not None and \
-            len(estimate.data_used["release_x"]) == n_files:
-        return position  # an in-memory estimate of the same files, in the same order
+    releases = estimate.data_used.get("release_x")
+    n_fitted = len(releases) if releases is not None else \
+        estimate.diagnostics.get("n_records")
+    if not any(hashes) and n_fitted == n_files:
+        return position  # an estimate of the same files, in the same order, without hashes
     return None
 
 
@@ -55,18 +57,23 @@ def _index_of(record, estimate, position: int, n_files: int):
 @click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]...")
 @click.option("--lags", type=click.IntRange(1, 1000), default=20, show_default=True,
               help="Autocorrelation lags of the Ljung–Box whiteness test.")
+@click.option("--inertia", type=float, default=None,
+              help="Inertia J [kg·m² or kg] of a friction-map model (default: fitted to "
+                   "each record).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write an overlay/residual figure (PNG, PDF or SVG).")
 @click.option("--overwrite", is_flag=True, help="Replace an existing figure.")
 @record_options
 @clean_errors
-def validate_command(result, files, lags, as_json, figure, overwrite, record_opts):
+def validate_command(result, files, lags, inertia, as_json, figure, overwrite, record_opts):
     """Simulate the model identified in RESULT.json on FILEs: fit %, residual whiteness.
 
-    A FILE the estimate was computed from (same content) is simulated from the estimate's
-    fitted release; any other FILE is held out: its release is fitted with the model fixed,
-    and its residual rms is the prediction error.
+    RESULT.json is the --json of a free-decay (logdec, output error), PHO, forced, IDIM or
+    friction-map identification. Each FILE is simulated with its own input u and initial
+    state: a PHO run in its PD loop (gains P, D and release x0 from the file's meta line),
+    a forced, IDIM or friction-map run driven by its u. A FILE the estimate was not
+    computed from is held out, and its residual rms is the prediction error.
     """
     from driveid.validate import compare
 
@@ -75,17 +82,26 @@ def validate_command(result, files, lags, as_json, figure, overwrite, record_opt
     comparisons = []
     for k, record in enumerate(records):
         index = _index_of(record, estimate, k, len(records))
-        comparisons.append(compare(record, estimate, index=index, lags=lags))
+        comparisons.append(compare(record, estimate, index=index, lags=lags,
+                                   inertia=inertia))
     if figure is not None:
         import matplotlib.pyplot as plt
 
         from driveid.report.figures import save_figure
 
-        fig, axes = plt.subplots(3, len(comparisons), figsize=(8 * len(comparisons), 7),
+        # at most 4 records side by side; more wrap into further rows of 3 panels
+        cols = min(len(comparisons), 4)
+        groups = -(-len(comparisons) // cols)
+        fig, axes = plt.subplots(3 * groups, cols, figsize=(6 * cols, 6.5 * groups),
                                  constrained_layout=True, squeeze=False)
-        for k, c in enumerate(comparisons):
-            c.plot(ax=axes[:, k])
-            axes[0, k].set_title(str(files[k]))
+        for k in range(groups * cols):
+            panel = axes[3 * (k // cols):3 * (k // cols) + 3, k % cols]
+            if k >= len(comparisons):
+                for ax in panel:
+                    ax.set_axis_off()
+                continue
+            comparisons[k].plot(ax=panel)
+            panel[0].set_title(str(files[k]), fontsize="small")
         save_figure(fig, figure, overwrite=overwrite)
     for spec, c in zip(files, comparisons, strict=True):
         for message in c.warnings:
@@ -93,13 +109,18 @@ def validate_command(result, files, lags, as_json, figure, overwrite, record_opt
     fits = [c.fit for c in comparisons]
     n_total = sum(c.t.size for c in comparisons)
     rms = math.sqrt(sum(c.residual_rms**2 * c.t.size for c in comparisons) / n_total)
+    held = [c for c in comparisons if c.held_out]
+    prediction = math.sqrt(sum(c.residual_rms**2 * c.t.size for c in held)
+                           / sum(c.t.size for c in held)) if held else None
     if as_json:
         out = {
             "schema": SCHEMA,
             "method": estimate.method,
+            "kind": comparisons[0].model.get("kind"),
             "result": str(result),
             "fit": min(fits),
             "residual_rms": rms,
+            "prediction_error": prediction,
             "whiteness": {"white": all(c.whiteness["white"] for c in comparisons),
                           "p_value": min(c.whiteness["p_value"] for c in comparisons),
                           "test": "ljung-box", "lags": lags},
@@ -110,6 +131,8 @@ def validate_command(result, files, lags, as_json, figure, overwrite, record_opt
         return
     if not comparisons:
         raise IdentificationError("no record to validate")
+    click.echo(f"model: {comparisons[0].model.get('kind')} ({estimate.method}), simulated "
+               "with each record's input and initial state")
     rows = [("file", "fit %", "residual rms", "Ljung–Box p", "white", "held out")]
     for spec, c in zip(files, comparisons, strict=True):
         rows.append((str(spec), f"{c.fit:.3f}", f"{c.residual_rms:.3g}",

@@ -362,7 +362,7 @@ def estimate_describing_friction(records: Sequence[Record], *, P: float | None =
     x_ref : float, optional
         Spring zero [rad or m]; needed for ``fk_delta`` when K is fitted or non-zero.
     settle_tol : float
-        Settling tolerance of :func:`driveid.identify.sine_fit.fit_sine_response` [-].
+        Settling tolerance of :func:`~driveid.identify.sine_fit.fit_sine_response` [-].
 
     Returns
     -------

@@ -307,6 +307,15 @@ def fit_sine_response(
 def record_list(records: Record | object) -> list[Record]:
     """Return one Record or a sequence of them as a list, refusing anything else.
 
+    Parameters
+    ----------
+    records : Record or sequence of Record
+        The runs.
+
+    Returns
+    -------
+    list of Record
+
     Raises
     ------
     ParameterError

@@ -52,6 +52,10 @@ def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
         from driveid.report.pho_figures import plot_pho_campaign
 
         return plot_pho_campaign(estimate)
+    if method == "pho-output-error":
+        from driveid.report.pho_figures import plot_pho_fit
+
+        return plot_pho_fit(estimate, record)
     if method.startswith("idim"):
         from driveid.report.friction_figures import plot_idim
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from driveid.report._pyplot import pyplot
 
-__all__ = ["plot_pho_campaign"]
+__all__ = ["plot_pho_campaign", "plot_pho_fit"]
 
 _PANELS = (("c_mean", "viscous c_mean"), ("K", "stiffness K"), ("fk_mean", "kinetic fk_mean"),
            ("fk_delta", "kinetic asymmetry fk_delta"))
@@ -54,5 +54,42 @@ def plot_pho_campaign(estimate: Any) -> Any:
     J = params["J"]
     fig.suptitle(f"PHO campaign: J = {J.value:.6g} ± {J.stderr:.2g} {J.unit}, "
                  f"delay = {params['delay'].value * 1e3:.4g} ms")
+    fig.tight_layout()
+    return fig
+
+
+def plot_pho_fit(estimate: Any, records: Any) -> Any:
+    """Each PHO run with the fitted closed loop (top) and the residuals (bottom).
+
+    Parameters
+    ----------
+    estimate : Estimate
+        From :func:`driveid.identify.pho_fit.estimate_pho_output_error` (its ``data_used``
+        holds ``run_samples``, ``fit_x`` [m or rad] and ``residual`` [m or rad]).
+    records : sequence of Record
+        The runs it was fitted to, in the same order [s; m or rad].
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    records = [records] if hasattr(records, "t") else list(records or [])
+    if not records:
+        raise ValueError("a PHO fit figure overlays the fit on its runs; pass the records")
+    plt = pyplot()
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 6), sharex=True,
+                                      gridspec_kw={"height_ratios": [2, 1]})
+    edges = np.cumsum([0, *estimate.data_used["run_samples"]])
+    fit, resid = estimate.data_used["fit_x"], estimate.data_used["residual"]
+    for k, rec in enumerate(records):
+        part = slice(edges[k], edges[k + 1])
+        top.plot(rec.t, rec.x, ".", ms=1.5, color=f"C{k % 10}")
+        top.plot(rec.t, fit[part], "-", lw=0.8, color=f"C{k % 10}")
+        bottom.plot(rec.t, resid[part], ".", ms=1.0, color=f"C{k % 10}")
+    unit = records[0].units.get("x", "")
+    top.set_ylabel(f"x [{unit}]")
+    top.set_title("PHO runs (dots) and the fitted delayed-PD loop (lines)")
+    bottom.set_ylabel(f"residual [{unit}]")
+    bottom.set_xlabel("t [s]")
     fig.tight_layout()
     return fig
