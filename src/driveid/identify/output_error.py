@@ -503,7 +503,7 @@ def estimate_output_error(
     if subsample > 1:
         est = est.with_warnings(
             f"{n_given} samples: fitted on every {subsample}th sample "
-            f"({problem.n}) to bound memory; unbiased, with error bars about "
+            f"({problem.n}) to bound the time; unbiased, with error bars about "
             f"{math.sqrt(subsample):.1f}x the full record's bound (crop with --t-start/--t-end "
             "to fit every sample of a shorter window)")
     return est
