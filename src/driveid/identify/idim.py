@@ -149,8 +149,9 @@ def idim_regressor(
         them. Rows at standstill are always dropped: there the force is held by static
         friction, which the model does not describe, and the sign of a velocity that is
         zero up to filter ripple is arbitrary. Standstill: the raw position moves by at
-        most two encoder counts (its smallest step) within ``fs/cutoff_hz`` samples,
-        widened by twice that on each side (the zero-phase filter smears the stop).
+        most two encoder counts (its smallest step), or by at most 8 noise sd (from its
+        second differences) on a noisy sensor, within ``fs/cutoff_hz`` samples, widened by
+        twice that on each side (the zero-phase filter smears the stop).
 
     Returns
     -------
@@ -240,10 +241,27 @@ def _standstill(x: np.ndarray, window: int) -> np.ndarray:
     size = 2 * int(window) + 1
     ptp = maximum_filter1d(x, size, mode="nearest")
     ptp -= minimum_filter1d(x, size, mode="nearest")
-    still = ptp <= 2.0 * quantum * (1 + 1e-9)
+    # a noisy (not only quantised) sensor never holds still to two counts: also call still
+    # what moves by less than the range white noise spans in the window (8 σ: the range of
+    # ~100 Gaussian samples exceeds it with probability ~1e-4)
+    still = ptp <= max(2.0 * quantum * (1 + 1e-9), 8.0 * _position_noise(x))
     del ptp
     # the zero-phase filter smears the stop over a few windows: its rows are unreliable too
     return maximum_filter1d(still.astype(np.int8), 4 * int(window) + 1) > 0
+
+
+def _position_noise(x: np.ndarray, blocks: int = 64, length: int = 8192) -> float:
+    """Robust white-noise sd of x [m or rad] from its second differences.
+
+    ``Δ²x`` of white noise of sd σ has sd ``√6 σ``; smooth motion adds only ``a·dt²``. The
+    median absolute value (×1.4826) over up to ``blocks`` evenly spaced blocks of ``length``
+    samples keeps it cheap on long records; 0 for a quantised record that mostly holds still.
+    """
+    starts = np.unique(np.linspace(0, max(x.size - length, 0), blocks).astype(int))
+    d2 = np.concatenate([np.diff(x[a:a + length], 2) for a in starts])
+    if d2.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d2)) / math.sqrt(6.0))
 
 
 def _per_sample(value: Any, n: int, name: str) -> np.ndarray:
