@@ -50,8 +50,8 @@ with the step's to 3 %). The covariance of the replicates, widened by
 
 Measured (``benchmarks/bench_pho_coverage.py``, docs/pho-fit.md): on 200 quantised
 asymmetric campaigns each of the test bed (8000 counts/rev) and the pendulum cart (10 µm),
-delay estimated, the 95 % intervals covered the truth in 91.5-96 % for every field, with
-bias < 0.1 se and scatter/se 0.99-1.05; the peak analysis's covered 27.5-100 %.
+delay estimated, the 95 % intervals covered the truth in 92-96.5 % for every field, with
+bias < 0.1 se and scatter/se 0.97-1.03; the peak analysis's covered 27.5-100 %.
 
 Limits
 ------
