@@ -22,7 +22,8 @@ import click
 from driveid.io.consistency import available_memory, check_allocation, check_count
 
 __all__ = ["FiniteFloat", "PositiveFloat", "NonNegativeFloat", "BoundedInt",
-           "check_allocation", "check_count", "available_memory", "FLOAT_LIMIT"]
+           "check_allocation", "check_count", "available_memory", "FLOAT_LIMIT",
+           "parse_quantisation"]
 
 #: Largest magnitude a float option accepts by default: far beyond any physical value in
 #: SI units, yet small enough that squares and products of two options stay finite.
@@ -166,3 +167,35 @@ class BoundedInt(click.ParamType):
             hint = f"; {self.override}" if self.override else ""
             self.fail(f"must be at most {self.limit}; got {number}{hint}", param, ctx)
         return number
+
+
+def parse_quantisation(text: str) -> float | str | None:
+    """Parse ``--quantisation``: ``auto``, ``none`` or an encoder step [m or rad].
+
+    Parameters
+    ----------
+    text : str
+        The option's value.
+
+    Returns
+    -------
+    float, "auto" or None
+        The step [m or rad], ``"auto"`` (detect it) or None (not quantised).
+
+    Raises
+    ------
+    click.BadParameter
+        Anything else, or a step that is not positive and finite.
+    """
+    value = text.strip().lower()
+    if value in ("auto", "none"):
+        return None if value == "none" else "auto"
+    try:
+        step = float(value)
+    except ValueError:
+        raise click.BadParameter(f"give 'auto', 'none' or a step in m or rad; got {text!r}",
+                                 param_hint="--quantisation") from None
+    if not (0 < step < math.inf):
+        raise click.BadParameter(f"the encoder step must be positive and finite; got {text!r}",
+                                 param_hint="--quantisation")
+    return step

@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import parse_quantisation
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
 
@@ -110,7 +111,7 @@ def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, b
     if method == "oe":
         # the whole-record fit takes any increasing timeline: no resampling
         records = raw
-        q = _quantisation(quantisation)
+        q = parse_quantisation(quantisation)
 
         def fit(recs):
             from driveid.commands._progress import progress_bar
@@ -157,19 +158,3 @@ def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, b
               else f"peaks: {est.diagnostics.get('n_peaks')}")
     emit(est, output_opts, records=records, figure=figure,
          header=f"method: {est.method}   {counts}")
-
-
-def _quantisation(text: str) -> float | str | None:
-    """``auto``, ``none`` or an encoder step [m or rad] for ``estimate_output_error``."""
-    value = text.strip().lower()
-    if value in ("auto", "none"):
-        return None if value == "none" else "auto"
-    try:
-        step = float(value)
-    except ValueError:
-        raise click.BadParameter(f"give 'auto', 'none' or a step in m or rad; got {text!r}",
-                                 param_hint="--quantisation") from None
-    if not (step > 0 and step < float("inf")):
-        raise click.BadParameter(f"the encoder step must be positive and finite; got {text!r}",
-                                 param_hint="--quantisation")
-    return step

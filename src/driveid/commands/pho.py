@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import parse_quantisation
 from driveid.commands._output import emit, output_options, plot_of
 from driveid.commands._progress import progress_bar
 from driveid.commands._record_options import RecordOptions, record_options
@@ -279,7 +280,7 @@ def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_out
     K_known = manifest.K if K is None else K
     from driveid.identify.pho import estimate_pho_records
 
-    q = _quantisation(quantisation)
+    q = parse_quantisation(quantisation)
     n_samples = sum(r.n for r in records)
     # auto keeps the peaks where the simulated loop cannot follow: the thesis's delay-free
     # analysis, a negative spring, or more samples than a fit takes in reasonable time
@@ -314,19 +315,3 @@ def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_out
 
     emit(est, output_opts, records=records, figure=figure,
          header=f"{len(records)} accepted run(s), {n_rej} rejected; {how}; {label}")
-
-
-def _quantisation(text: str) -> float | str | None:
-    """``auto``, ``none`` or an encoder step [m or rad]."""
-    value = text.strip().lower()
-    if value in ("auto", "none"):
-        return None if value == "none" else "auto"
-    try:
-        step = float(value)
-    except ValueError:
-        raise click.BadParameter(f"give 'auto', 'none' or a step in m or rad; got {text!r}",
-                                 param_hint="--quantisation") from None
-    if not (0 < step < math.inf):
-        raise click.BadParameter(f"the encoder step must be positive and finite; got {text!r}",
-                                 param_hint="--quantisation")
-    return step
