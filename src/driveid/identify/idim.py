@@ -29,6 +29,7 @@ from driveid.identify._expressions import evaluate_expression, parse_expression
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.signal.differentiate import differentiate
+from driveid.signal.steady import standstill_mask
 
 __all__ = [
     "estimate_idim",
@@ -220,48 +221,11 @@ def idim_regressor(
     min_speed = 0.0 if min_speed is None else float(min_speed)
     if not (math.isfinite(min_speed) and min_speed >= 0):
         raise ParameterError(f"min_speed must be >= 0 [m/s or rad/s]; got {min_speed}")
-    still = _standstill(np.asarray(record.x, float), max(1, round(fs / cutoff_hz)))[sl]
+    still = standstill_mask(np.asarray(record.x, float), max(1, round(fs / cutoff_hz)))[sl]
     if decimate > 1:
         still = still[:: int(decimate)]
     moving = ~still & (np.abs(v_dec) > min_speed)
     return W[moving], y[moving], t[moving], v_dec[moving]
-
-
-def _standstill(x: np.ndarray, window: int) -> np.ndarray:
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d
-
-    from driveid.signal.repair import _interval_blocks
-
-    # smallest non-zero step over blocks of steps: no whole-record temporaries
-    moving = [float(np.min(d[d > 0])) for d in (np.abs(d) for _, d in _interval_blocks(x))
-              if np.any(d > 0)]
-    if not moving:
-        return np.ones(x.size, bool)
-    quantum = min(moving)
-    size = 2 * int(window) + 1
-    ptp = maximum_filter1d(x, size, mode="nearest")
-    ptp -= minimum_filter1d(x, size, mode="nearest")
-    # a noisy (not only quantised) sensor never holds still to two counts: also call still
-    # what moves by less than the range white noise spans in the window (8 σ: the range of
-    # ~100 Gaussian samples exceeds it with probability ~1e-4)
-    still = ptp <= max(2.0 * quantum * (1 + 1e-9), 8.0 * _position_noise(x))
-    del ptp
-    # the zero-phase filter smears the stop over a few windows: its rows are unreliable too
-    return maximum_filter1d(still.astype(np.int8), 4 * int(window) + 1) > 0
-
-
-def _position_noise(x: np.ndarray, blocks: int = 64, length: int = 8192) -> float:
-    """Robust white-noise sd of x [m or rad] from its second differences.
-
-    ``Δ²x`` of white noise of sd σ has sd ``√6 σ``; smooth motion adds only ``a·dt²``. The
-    median absolute value (×1.4826) over up to ``blocks`` evenly spaced blocks of ``length``
-    samples keeps it cheap on long records; 0 for a quantised record that mostly holds still.
-    """
-    starts = np.unique(np.linspace(0, max(x.size - length, 0), blocks).astype(int))
-    d2 = np.concatenate([np.diff(x[a:a + length], 2) for a in starts])
-    if d2.size == 0:
-        return 0.0
-    return float(1.4826 * np.median(np.abs(d2)) / math.sqrt(6.0))
 
 
 def _per_sample(value: Any, n: int, name: str) -> np.ndarray:

@@ -17,7 +17,8 @@ import numpy as np
 
 from driveid.errors import ParameterError, RecordError
 
-__all__ = ["SteadySegment", "find_steady_segments", "segment_mean", "noise_level", "n_effective"]
+__all__ = ["SteadySegment", "find_steady_segments", "segment_mean", "noise_level", "n_effective",
+           "position_noise", "standstill_mask"]
 
 
 @dataclass(frozen=True)
@@ -275,3 +276,78 @@ def _split_level(m: np.ndarray, tol: np.ndarray, a: int, b: int) -> list[tuple[i
         total += m[i]
     pieces.append((start, b))
     return pieces
+
+
+def standstill_mask(x: np.ndarray, window: int) -> np.ndarray:
+    """Mark the samples at which a measured position holds still (static friction holds it).
+
+    Still: the raw position moves by at most two encoder counts (its smallest step), or by at
+    most 8 white-noise sd (:func:`position_noise`) on a noisy sensor, within ``2·window + 1``
+    samples; widened by ``2·window`` on each side, since a zero-phase filter smears the stop.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Position [m or rad].
+    window : int
+        Half-width in samples, e.g. ``fs/cutoff_hz`` of the velocity filter [-].
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    from driveid.signal.repair import _interval_blocks
+
+    # smallest non-zero step over blocks of steps: no whole-record temporaries
+    moving = [float(np.min(d[d > 0])) for d in (np.abs(d) for _, d in _interval_blocks(x))
+              if np.any(d > 0)]
+    if not moving:
+        return np.ones(x.size, bool)
+    quantum = min(moving)
+    size = 2 * int(window) + 1
+    ptp = maximum_filter1d(x, size, mode="nearest")
+    ptp -= minimum_filter1d(x, size, mode="nearest")
+    # a noisy (not only quantised) sensor never holds still to two counts: also call still
+    # what moves by less than the range white noise spans in the window (8 σ: the range of
+    # ~100 Gaussian samples exceeds it with probability ~1e-4)
+    still = ptp <= max(2.0 * quantum * (1 + 1e-9), 8.0 * position_noise(x))
+    del ptp
+    # the zero-phase filter smears the stop over a few windows: its rows are unreliable too
+    return maximum_filter1d(still.astype(np.int8), 4 * int(window) + 1) > 0
+
+
+def position_noise(x: np.ndarray, blocks: int = 64, length: int = 8192) -> float:
+    """Robust white-noise sd of a moving position from its second differences [m or rad].
+
+    ``Δ²x`` of white noise of sd σ has sd ``√6 σ``; smooth motion adds only ``a·dt²`` (first
+    differences, :func:`noise_level`, would carry the velocity). The median absolute value
+    (×1.4826) over up to ``blocks`` evenly spaced blocks of ``length`` samples keeps it cheap
+    on long records; 0 for a quantised record that mostly holds still.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Position [m or rad].
+    blocks, length : int
+        How many blocks of how many samples are used [-].
+
+    Returns
+    -------
+    float
+        σ [m or rad].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> t = np.arange(100000) / 1000.0
+    >>> x = np.sin(t) + np.random.default_rng(0).normal(0.0, 1e-3, t.size)
+    >>> round(position_noise(x) * 1e3, 2)
+    1.0
+    """
+    starts = np.unique(np.linspace(0, max(x.size - length, 0), blocks).astype(int))
+    d2 = np.concatenate([np.diff(x[a:a + length], 2) for a in starts])
+    if d2.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d2)) / math.sqrt(6.0))
