@@ -230,3 +230,17 @@ def test_analyse_methods_oe_and_peaks(campaign):
     assert "uncompensated (delay 0); peak analysis" in text  # the thesis's situation: peaks
     bad = runner.invoke(pho_group, ["analyse", str(out), "--quantisation", "fine"])
     assert bad.exit_code == 2 and "--quantisation" in bad.output
+
+
+def test_auto_on_a_campaign_too_large_to_fit_whole_says_so(campaign, monkeypatch):
+    # `auto` falls back to the peaks above OE_MAX_SAMPLES; that must not be silent, since the
+    # peaks' error bars on encoder records are the issue-13 finding (40-50 % coverage)
+    import driveid.commands.pho as pho_cmd
+
+    monkeypatch.setattr(pho_cmd, "OE_MAX_SAMPLES", 100)
+    out, _ = campaign
+    r = CliRunner().invoke(pho_group, ["analyse", str(out), "--json", "--K", "0"])
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    assert data["method"] == "pho-campaign"
+    assert any("--method oe" in w for w in data["warnings"])

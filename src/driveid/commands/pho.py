@@ -289,6 +289,11 @@ def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_out
                                 and n_samples <= OE_MAX_SAMPLES)
     peaks = estimate_pho_records(records, delay=delay, K_known=K_known, units=manifest.units)
     est = peaks
+    if method == "auto" and not use_oe and n_samples > OE_MAX_SAMPLES and not uncompensated:
+        est = peaks.with_warnings(
+            f"{n_samples:,} samples in all: the peak analysis was used, whose error bars on "
+            f"encoder records are not trustworthy; pass --method oe to fit every sample "
+            f"(slow above {OE_MAX_SAMPLES:,}) or crop the runs with --t-end")
     if use_oe:
         from driveid.errors import IdentificationError, RecordError
         from driveid.identify.pho_fit import estimate_pho_output_error
