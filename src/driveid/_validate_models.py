@@ -13,9 +13,10 @@ kind (estimate methods)    input and loop                  initial state
 (``pho-campaign``,         of ``meta``, Δ = ``delay``;     sample), at rest at t = 0
 ``pho-output-error``)      no external input               (a window keeps that clock)
 ``forced``                 ``u`` of the record; forced     fitted (exact linear least
-(``forced-response``,      PHO adds the delayed PD loop    squares, the model is linear)
-``forced-pho``)            (gains from ``meta`` or the
-                           estimate)
+(``forced-response``,      PHO adds the delayed PD loop    squares; nonlinear least
+``forced-pho``)            (gains from ``meta`` or the     squares with friction)
+                           estimate); with friction=True
+                           also c_delta, fk_mean, fk_delta
 ``idim`` (``idim-ls-*``)   ``u - offset``, ``K = 0``       x0 the mean residual, v0 by
                                                            least squares from the first
                                                            samples' slope
@@ -224,7 +225,7 @@ def _pho_model(estimate, record, index):
 
 
 def _forced_model(estimate, record, index):
-    from driveid.sim import BodyParams, PDFeedback
+    from driveid.sim import PDFeedback
 
     what = f"a {estimate.method} estimate"
     J = _value(estimate, "J", what)
@@ -241,8 +242,23 @@ def _forced_model(estimate, record, index):
         D = _gain(record, estimate, "D", index, what)
         fb = PDFeedback(P=P, D=D, delay=delay)
         summary.update(delay=delay, P=P, D=D)
-    return DriveModel("forced", BodyParams(J=J, K=K, c_mean=c_mean), fb, uses_input=True,
-                      linear=True, summary=summary)
+    # a friction fit (friction=True) adds c_delta, fk_mean, fk_delta; fk_delta not identified
+    # on a spring of unknown zero is replaced by the identified K·x_ref-inclusive offset,
+    # which gives the same force in the record's own coordinates
+    friction = {n: _optional(estimate, n) for n in ("c_delta", "fk_mean", "fk_delta")}
+    offset = estimate.diagnostics.get("dc_force_offset")
+    if ("fk_delta" in estimate and not math.isfinite(estimate.value("fk_delta"))
+            and isinstance(offset, (int, float)) and math.isfinite(offset)):
+        friction["fk_delta"] = float(offset)
+        summary["fk_delta_from"] = "dc_force_offset (fk_delta - K·x_ref)"
+    summary.update(friction)
+    summary["terms_taken_as_zero"] += [
+        n for n in ("c_delta", "fk_mean", "fk_delta")
+        if n in estimate and not math.isfinite(estimate.value(n)) and friction[n] == 0.0]
+    body = _friction_body(J, K, c_mean, friction["c_delta"], friction["fk_mean"],
+                          friction["fk_delta"], what)
+    linear = friction["fk_mean"] == 0 and friction["fk_delta"] == 0 and friction["c_delta"] == 0
+    return DriveModel("forced", body, fb, uses_input=True, linear=linear, summary=summary)
 
 
 def _idim_model(estimate, record, index):
@@ -434,7 +450,26 @@ def simulate_model(model: DriveModel, record: Record) -> tuple[np.ndarray, dict[
         (x0, v0), *_ = np.linalg.lstsq(cols, y - base, rcond=None)
         return base + cols @ [x0, v0], {"x0": float(x0), "v0": float(v0),
                                         "initial_state": "fitted (linear least squares)"}
+    if model.kind == "forced":
+        return _fit_state(model, record, y)
     return _fit_free_body(model, record, y)
+
+
+def _fit_state(model: DriveModel, record: Record, y: np.ndarray):
+    """Fit the initial state of a forced model with friction (not linear in it).
+
+    Started from the linear fit of the same drive without its Coulomb and asymmetric terms.
+    """
+    linear = replace(model, linear=True,
+                     body=replace(model.body, c_delta=0.0, fk_mean=0.0, fk_delta=0.0))
+    _, first = simulate_model(linear, record)
+    sx = max(float(np.std(y)), 1e-12)
+    sv = max(sx * 2.0 * math.pi / max(record.duration, record.dt), 1e-12)
+    sol = least_squares(lambda q: _run(model, record, float(q[0]), float(q[1])) - y,
+                        [first["x0"], first["v0"]], x_scale=[sx, sv])
+    x0, v0 = (float(v) for v in sol.x)
+    return _run(model, record, x0, v0), {"x0": x0, "v0": v0,
+                                         "initial_state": "fitted (nonlinear least squares)"}
 
 
 def _fit_free_body(model: DriveModel, record: Record, y: np.ndarray):

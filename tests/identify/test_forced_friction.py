@@ -301,3 +301,20 @@ def test_cli_identify_forced_friction(tmp_path, open_runs):
     assert "fk_delta" in res.stdout and "nan" in res.stdout.lower()
     res = CliRunner().invoke(forced_command, [*paths, "--x-ref", "0"])
     assert res.exit_code != 0 and "--friction" in res.output
+
+
+def test_validation_simulates_the_fitted_friction(open_runs):
+    # issue 13 item 5 for friction=True: validation must simulate the fitted Coulomb and
+    # asymmetric terms, not the viscous C alone. The runs are the simulator's own model, so
+    # the friction estimate (within 0.25 %, above) must reproduce them closely; without
+    # friction the same runs are 60 % off in C and fit visibly worse.
+    from driveid.validate import compare
+
+    rec = open_runs[0]
+    with_friction = estimate_forced_response(open_runs, friction=True, x_ref=0.0)
+    without = estimate_forced_response(open_runs)
+    fit_f = compare(rec, with_friction, index=0).fit
+    fit_0 = compare(rec, without, index=0).fit
+    # 99 %: the issue's acceptance for a model that describes the record
+    assert fit_f >= 99.0
+    assert fit_f > fit_0
