@@ -23,7 +23,7 @@ from driveid.io.consistency import available_memory, check_allocation, check_cou
 
 __all__ = ["FiniteFloat", "PositiveFloat", "NonNegativeFloat", "BoundedInt",
            "check_allocation", "check_count", "available_memory", "FLOAT_LIMIT",
-           "parse_quantisation"]
+           "parse_quantisation", "bootstrap_options"]
 
 #: Largest magnitude a float option accepts by default: far beyond any physical value in
 #: SI units, yet small enough that squares and products of two options stay finite.
@@ -199,3 +199,30 @@ def parse_quantisation(text: str) -> float | str | None:
         raise click.BadParameter(f"the encoder step must be positive and finite; got {text!r}",
                                  param_hint="--quantisation")
     return step
+
+
+def bootstrap_options(default_replicates: int) -> Any:
+    """Add ``--quantisation``, ``--bootstrap`` and ``--seed`` (the encoder bootstrap, oe).
+
+    Parameters
+    ----------
+    default_replicates : int
+        Default of ``--bootstrap`` [-].
+
+    Returns
+    -------
+    callable
+        A decorator; the command receives ``quantisation`` (text, see
+        :func:`parse_quantisation`), ``bootstrap`` and ``seed``.
+    """
+    def decorate(command: Any) -> Any:
+        command = click.option("--seed", type=int, default=None,
+                               help="Seed of the bootstrap (oe).")(command)
+        command = click.option("--bootstrap", type=int, default=default_replicates,
+                               show_default=True,
+                               help="Bootstrap repeats for quantised records (oe).")(command)
+        return click.option("--quantisation", default="auto", show_default=True,
+                            help="Encoder step [m or rad] for the bootstrap error bars (oe): "
+                                 "'auto' detects it, 'none' treats the noise as white."
+                            )(command)
+    return decorate

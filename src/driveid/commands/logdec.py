@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import parse_quantisation
+from driveid.commands._checks import bootstrap_options, parse_quantisation
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
 
@@ -87,12 +87,7 @@ def free_decay_command(J, K, c_mean, c_delta, fk_mean, fk_delta, fs_mean, fs_del
               help="Position of the spring's zero [m or rad] (oe; a constant offset is not "
                    "identifiable from a free decay).")
 @click.option("--drift", is_flag=True, help="Fit a slow linear drift of the position (oe).")
-@click.option("--quantisation", default="auto", show_default=True,
-              help="Encoder step [m or rad] for the bootstrap error bars (oe): 'auto' "
-                   "detects it, 'none' treats the noise as white.")
-@click.option("--bootstrap", type=int, default=25, show_default=True,
-              help="Bootstrap repeats for quantised records (oe).")
-@click.option("--seed", type=int, default=None, help="Seed of the bootstrap (oe).")
+@bootstrap_options(25)
 @click.option("--check-window", is_flag=True,
               help="Refit without the last 20 % of each window and warn when a parameter "
                    "moves by more than 3 standard errors.")

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import parse_quantisation
+from driveid.commands._checks import bootstrap_options, parse_quantisation
 from driveid.commands._output import emit, output_options, plot_of
 from driveid.commands._progress import progress_bar
 from driveid.commands._record_options import RecordOptions, record_options
@@ -247,12 +247,7 @@ def _reread(records: list, record_opts: RecordOptions) -> list:
                    "and the campaign equations; auto: oe, but peaks with --uncompensated, "
                    f"a negative K, above {OE_MAX_SAMPLES:,} samples in all, or if the oe "
                    "fit fails.")
-@click.option("--quantisation", default="auto", show_default=True,
-              help="Encoder step [m or rad] for the bootstrap error bars (oe): 'auto' "
-                   "detects it, 'none' treats the noise as white.")
-@click.option("--bootstrap", type=int, default=50, show_default=True,
-              help="Bootstrap repeats for quantised records (oe).")
-@click.option("--seed", type=int, default=None, help="Seed of the bootstrap (oe).")
+@bootstrap_options(50)
 @record_options
 @output_options
 @clean_errors
