@@ -24,7 +24,7 @@ import numpy as np
 
 from driveid.errors import IdentificationError, ParameterError
 from driveid.identify._free_response import GLOBAL_NAMES, kinetic_stop_count, response
-from driveid.identify.output_error import physical_parameters
+from driveid.identify.output_error import _physical_jacobian, physical_parameters
 
 __all__ = ["free_decay_crlb", "required_duration"]
 
@@ -128,14 +128,7 @@ def free_decay_crlb(
     mass = _get(params, "J") if known == "J" else None
     stiffness = _get(params, "K") if known == "K" else None
     free = [n for n in _PHYSICAL if n != known]
-    G = np.empty((len(free), 5))
-    for i in range(5):
-        h = 1e-6 * max(abs(base[i]), 1e-4)
-        up, down = base.copy(), base.copy()
-        up[i] += h
-        down[i] -= h
-        a, b = physical_parameters(up, mass, stiffness), physical_parameters(down, mass, stiffness)
-        G[:, i] = [(a[n] - b[n]) / (2 * h) for n in free]
+    G = _physical_jacobian(base, mass, stiffness, free)
     cov_phys = G @ cov[:5, :5] @ G.T
     out = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(GLOBAL_NAMES)}
     out.update({n: float(math.sqrt(max(cov_phys[i, i], 0.0))) for i, n in enumerate(free)})
