@@ -357,7 +357,7 @@ def drive_model(estimate: Estimate, record: Record, *, index: int | None = None,
     if kind in ("forced", "idim", "friction-map") and record.u is None:
         raise RecordError(
             f"a {estimate.method} model is driven by the record's force/torque u, and this "
-            "record has none; read it with its force column (--force-column NAME)")
+            "record has none; read it with its force column (--force COL)")
     if inertia is not None and not (math.isfinite(inertia) and inertia > 0):
         raise IdentificationError(f"inertia must be positive [kg·m² or kg]; got {inertia!r}")
     if kind == "pho":
