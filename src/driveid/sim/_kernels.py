@@ -7,8 +7,6 @@ Kernels:
   (Kelvin–Voigt contact, or a Newton restitution impulse at the gap edge), and a PD feedback
   with a pure delay read from a history of past states (cubic Hermite); resumable, so a
   sampled-data controller can run it one control period at a time.
-* :func:`drive_batch_kernel` (and ``_parallel``) — :func:`drive_kernel` over many
-  parameter sets in one call.
 * :func:`free_decay_batch_kernel` — the exact piecewise closed form of the 1-DOF oscillator
   with stiction for many parameter sets (the Monte-Carlo path).
 
@@ -27,7 +25,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 from numba.core import cpu as _numba_cpu
 
 # The time loop allocates nothing, so it is compiled without numba's reference counting
@@ -229,22 +227,18 @@ def _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1, k2
     trial step of the event search; the forces at the end are needed only when a body is
     stuck (no other event function reads them).
 
-    Inlined into :func:`_integrate` (compiled without reference counting), with separate
-    stage vectors: array views, and calls with array arguments, in the hot loop cost an
-    atomic reference-count update or ~100 words of arguments each (most of the step time,
-    profiled).
+    Inlined into :func:`_integrate` at its one call site, and the three later stages run as a
+    loop over one inlined :func:`_deriv`: every inlined copy multiplies numba's compile time
+    (17 copies of the force evaluation took ~50 s to compile; the loop costs nothing per step).
     """
     ny = y.shape[0]
-    a = 0.5 * s
-    for i in range(ny):
-        ys[i] = y[i] + a * k1[i]
-    _deriv(tau + a, ys, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k2)
-    for i in range(ny):
-        ys[i] = y[i] + a * k2[i]
-    _deriv(tau + a, ys, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k3)
-    for i in range(ny):
-        ys[i] = y[i] + s * k3[i]
-    _deriv(tau + s, ys, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k4)
+    for stage in range(3):
+        c = s if stage == 2 else 0.5 * s
+        src = k1 if stage == 0 else (k2 if stage == 1 else k3)
+        dst = k2 if stage == 0 else (k3 if stage == 1 else k4)
+        for i in range(ny):
+            ys[i] = y[i] + c * src[i]
+        _deriv(tau + c, ys, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dst)
     for i in range(ny):
         out[i] = y[i] + s / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
     # stuck and locked bodies keep their position exactly
@@ -257,22 +251,15 @@ def _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1, k2
     _validity(out, nb, modes, par, work, phi)
 
 
-@njit(cache=True, inline="always")
-def _grid_point(step, t, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1, fbb):
-    """Store the feedback body's history at grid point ``step``; return (command, raw command).
+@njit(cache=True, **_NO_REFCOUNT)
+def _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, phi):
+    """Compute the forces at ``y`` into ``work``, and the event functions (unless phi is empty).
 
-    Its acceleration comes from the derivative there, which is also the first RK4 stage
-    (into ``k1``); the raw (unsaturated) command at ``t`` feeds the safety abort.
+    Not inlined: called only at the start of a run and around events (the cold paths).
     """
-    nl = nb - 1
-    fbr = nb + nl
-    hist[0, step] = y[fbb]
-    hist[1, step] = y[nb + fbb]
-    cmd = _deriv(t, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1)
-    hist[2, step] = k1[nb + fbb]
-    xd, vd = _delayed(t, par[fbr, 4], h, hist, x0b, v0b, y[fbb], y[nb + fbb])
-    raw = par[fbr, 2] * (_interp(inp, nb, t, fs_in) - xd) - par[fbr, 3] * vd
-    return cmd, raw
+    _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
+    if phi.shape[0] > 0:
+        _validity(y, nb, modes, par, work, phi)
 
 
 @njit(cache=True, inline="always")
@@ -281,6 +268,15 @@ def _any_stuck(modes, nb):
         if modes[i] == STUCK:
             return True
     return False
+
+
+@njit(cache=True, inline="always")
+def _next_event(phi, after):
+    """Index of the first event function below zero after index ``after`` (-1: none)."""
+    for e in range(after + 1, phi.shape[0]):
+        if phi[e] < 0.0:
+            return e
+    return -1
 
 
 @njit(cache=True, **_NO_REFCOUNT)
@@ -375,7 +371,7 @@ def _resolve(y, nb, modes, par, work, counts, energy_jump):
             modes[r] = 0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_events,
                  resume, jump0):
     """Integrate the chain; see :func:`driveid.sim.drive.simulate_drive`.
@@ -427,8 +423,11 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                v_out, cmd_out, e_out, hist, x0b, v0b):
     """Run the time loop of :func:`drive_kernel` on its preallocated arrays.
 
-    Compiled without reference counting (``_nrt=False``: it allocates nothing) and with
-    every per-step helper inlined. Returns (status, abort_index, abort_value).
+    Compiled without reference counting (``_nrt=False``: it allocates nothing). The hot
+    helpers are inlined, each at one call site (compile time grows with every inlined copy):
+    one derivative at each start point, and one RK4 step that serves the full step, every
+    trial of the event search and the step to the event, as phases of one loop.
+    Returns (status, abort_index, abort_value).
     """
     nb = (modes.shape[0] + 1) // 2
     nl = nb - 1
@@ -437,6 +436,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     h = 1.0 / (fs_in * n_sub)
     has_fb = par[fbr, 0] != 0.0
     fbb = int(par[fbr, 1]) if has_fb else 0
+    no_phi = phiy[:0]
     status = OK
     abort_index = -1
     abort_value = 0.0
@@ -446,77 +446,71 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             if modes[i] != LOCKED:
                 modes[i] = -1 if y[nb + i] < 0 else 1
     for _ in range(3):
-        _forces(0.0, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
+        _forces_and_validity(0.0, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
+                             no_phi)
         _resolve(y, nb, modes, par, work, counts, jump)
     if not resume:
         counts[0] = 0
         counts[1] = 0
     for step in range(n_steps + 1):
         t = step * h
-        cmd = 0.0
         if has_fb:
-            cmd, raw = _grid_point(step, t, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b,
-                                   work, k1, fbb)
-            if abs(raw) > abort_limit:
-                status = ABORTED
-                abort_index = step
-                abort_value = raw
-                break
-        if step % n_sub == 0:
-            o = step // n_sub
-            for i in range(nb):
-                x_out[i, o] = y[i]
-                v_out[i, o] = y[nb + i]
-            cmd_out[o] = cmd
-            e_out[0, o] = y[2 * nb]
-            e_out[1, o] = y[2 * nb + 1]
-            e_out[2, o] = y[2 * nb + 2]
-            e_out[3, o] = jump[0]
-            stored = 0.0
-            for j in range(nl):
-                r = nb + j
-                if par[r, 0] >= LINK_BACKLASH and modes[r] != 0:
-                    rel = y[j] - y[j + 1]
-                    d = rel - par[r, 3] if modes[r] > 0 else -par[r, 4] - rel
-                    stored += 0.5 * par[r, 1] * d * d
-            e_out[4, o] = stored
-            e_out[5, o] = jump[1]
-        if step == n_steps:
-            break
+            hist[0, step] = y[fbb]
+            hist[1, step] = y[nb + fbb]
         # advance one grid step, splitting it at every event
         tau = t
         remaining = h
         n_ev = 0
-        fresh = has_fb  # k1 holds the derivative at (tau, y) in the current modes
+        grid_point = True
         while True:
-            if not fresh:
-                _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1)
-            fresh = False
+            # the derivative at (tau, y) in the current modes: the first RK4 stage of every
+            # trial step from here, and at a grid point the feedback's acceleration history
+            cmd = _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1)
+            if grid_point:
+                grid_point = False
+                if has_fb:
+                    hist[2, step] = k1[nb + fbb]
+                    xd, vd = _delayed(t, par[fbr, 4], h, hist, x0b, v0b, y[fbb], y[nb + fbb])
+                    raw = par[fbr, 2] * (_interp(inp, nb, t, fs_in) - xd) - par[fbr, 3] * vd
+                    if abs(raw) > abort_limit:
+                        status = ABORTED
+                        abort_index = step
+                        abort_value = raw
+                        break
+                else:
+                    cmd = 0.0
+                if step % n_sub == 0:
+                    _store(step // n_sub, y, nb, modes, par, cmd, jump, x_out, v_out, cmd_out,
+                           e_out)
+                if step == n_steps:
+                    break
             stuck = _any_stuck(modes, nb)
-            _step(tau, y, remaining, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
-                  k1, k2, k3, k4, ys, yend, phi1, stuck)
+            # phases: the full remaining step; an Illinois secant on the step length for each
+            # event function that went negative; the step to just past the earliest one
+            full = True
+            final = False
+            s = remaining
+            e = -1
             first = -1
             s_first = remaining
-            at_start = False
-            for e in range(nb + nl):
-                if phi1[e] >= 0.0:
-                    continue
-                # Illinois secant for the zero of phi_e(s) on [0, remaining]
-                if not at_start:
-                    _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
-                    _validity(y, nb, modes, par, work, phiy)
-                    at_start = True
-                lo = 0.0
-                hi = remaining
-                flo = max(phiy[e], 0.0)
-                fhi = phi1[e]
-                side = 0
-                for _it in range(100):
-                    s = (lo * (-fhi) + hi * flo) / (flo - fhi) if flo - fhi > 0.0 else lo
-                    if not (lo < s < hi):
-                        s = 0.5 * (lo + hi)
-                    _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
-                          k1, k2, k3, k4, ys, ytry, phi0, stuck)
+            lo = hi = flo = fhi = 0.0
+            side = 0
+            it = 0
+            while True:
+                out = yend if full else ytry
+                phi = phi1 if full else phi0
+                _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
+                      k1, k2, k3, k4, ys, out, phi, stuck)
+                if final:
+                    break
+                if full:
+                    full = False
+                    e = _next_event(phi1, -1)
+                    if e < 0:
+                        break
+                    _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b,
+                                         v0b, work, phiy)
+                else:
                     fm = phi0[e]
                     if fm < 0.0:
                         hi = s
@@ -530,19 +524,36 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                         if side == 1:
                             fhi *= 0.5
                         side = 1
+                    it += 1
                     # no early exit on fm == 0: the switch needs a point past the root
-                    if hi - lo <= 1e-15 * h:
-                        break
-                if first < 0 or hi < s_first:
-                    s_first = hi
-                    first = e
+                    if not (hi - lo <= 1e-15 * h or it >= 100):
+                        s = (lo * (-fhi) + hi * flo) / (flo - fhi) if flo - fhi > 0.0 else lo
+                        if not (lo < s < hi):
+                            s = 0.5 * (lo + hi)
+                        continue
+                    if first < 0 or hi < s_first:
+                        s_first = hi
+                        first = e
+                    e = _next_event(phi1, e)
+                    if e < 0:
+                        final = True
+                        s = s_first
+                        continue
+                # bracket the zero of event function e on [0, remaining]
+                lo = 0.0
+                hi = remaining
+                flo = max(phiy[e], 0.0)
+                fhi = phi1[e]
+                side = 0
+                it = 0
+                s = (lo * (-fhi) + hi * flo) / (flo - fhi) if flo - fhi > 0.0 else lo
+                if not (lo < s < hi):
+                    s = 0.5 * (lo + hi)
             if first < 0:
                 for i in range(ny):
                     y[i] = yend[i]
                 break
-            # step to just past the event, then switch modes there
-            _step(tau, y, s_first, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
-                  k1, k2, k3, k4, ys, ytry, phi0, stuck)
+            # switch modes just past the event
             for i in range(ny):
                 y[i] = ytry[i]
             tau += s_first
@@ -550,7 +561,8 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             if first < nb and modes[first] != STUCK:
                 y[nb + first] = 0.0
             for _r in range(3):
-                _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
+                _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b,
+                                     work, no_phi)
                 _resolve(y, nb, modes, par, work, counts, jump)
             n_ev += 1
             if n_ev > max_events:
@@ -559,60 +571,31 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                 break
             if remaining <= 1e-15 * h:
                 break
-        if status != OK:
+        if status != OK or step == n_steps:
             break
     return status, abort_index, abort_value
 
 
-@njit(cache=True)
-def _batch_one(r, out, y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
-               max_events):
-    """Run :func:`drive_kernel` for run ``r`` of a batch and store it in ``out``."""
-    x, v, c, e, cnt, st, ai, av, _m = drive_kernel(
-        y0s[r], modes0s[r], pars[r], inps[r], abort_limits[r], fs_in, n_out, n_subs[r],
-        max_events, False, np.zeros(2))
-    out[0][r] = x
-    out[1][r] = v
-    out[2][r] = c
-    out[3][r] = e
-    out[4][r] = cnt
-    out[5][r] = st
-    out[6][r] = ai
-    out[7][r] = av
-
-
-@njit(cache=True)
-def _batch_alloc(n, nb, n_out):
-    return (np.empty((n, nb, n_out)), np.empty((n, nb, n_out)), np.empty((n, n_out)),
-            np.empty((n, 6, n_out)), np.zeros((n, 2), dtype=np.int64),
-            np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), np.zeros(n))
-
-
-@njit(cache=True)
-def drive_batch_kernel(y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
-                       max_events):
-    """Run :func:`drive_kernel` for every run ``r`` (same number of bodies) in one call.
-
-    Returns stacked (x, v, cmd, energy, counts, status, abort_index, abort_value).
-    """
-    n = pars.shape[0]
-    out = _batch_alloc(n, (modes0s.shape[1] + 1) // 2, n_out)
-    for r in range(n):
-        _batch_one(r, out, y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
-                   max_events)
-    return out
-
-
-@njit(cache=True, parallel=True)
-def drive_batch_kernel_parallel(y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
-                                max_events):
-    """:func:`drive_batch_kernel` with the runs spread over numba's threads."""
-    n = pars.shape[0]
-    out = _batch_alloc(n, (modes0s.shape[1] + 1) // 2, n_out)
-    for r in prange(n):
-        _batch_one(r, out, y0s, modes0s, pars, inps, abort_limits, fs_in, n_out, n_subs,
-                   max_events)
-    return out
+@njit(cache=True, **_NO_REFCOUNT)
+def _store(o, y, nb, modes, par, cmd, jump, x_out, v_out, cmd_out, e_out):
+    """Store output sample ``o``: positions, velocities, command and the energy rows."""
+    for i in range(nb):
+        x_out[i, o] = y[i]
+        v_out[i, o] = y[nb + i]
+    cmd_out[o] = cmd
+    e_out[0, o] = y[2 * nb]
+    e_out[1, o] = y[2 * nb + 1]
+    e_out[2, o] = y[2 * nb + 2]
+    e_out[3, o] = jump[0]
+    stored = 0.0
+    for j in range(nb - 1):
+        r = nb + j
+        if par[r, 0] >= LINK_BACKLASH and modes[r] != 0:
+            rel = y[j] - y[j + 1]
+            d = rel - par[r, 3] if modes[r] > 0 else -par[r, 4] - rel
+            stored += 0.5 * par[r, 1] * d * d
+    e_out[4, o] = stored
+    e_out[5, o] = jump[1]
 
 
 # --------------------------------------------------------------------------- exact 1-DOF

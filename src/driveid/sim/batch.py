@@ -1,4 +1,4 @@
-"""Many simulations in one compiled call, for Monte-Carlo studies.
+"""Many simulations in one call, for Monte-Carlo studies.
 
 * :func:`simulate_drive_batch` — many lumped drives of one size (the event-located RK4 path
   of :func:`driveid.sim.drive.simulate_drive`, optionally in parallel threads);
@@ -9,6 +9,9 @@
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
 import numpy as np
 
 from driveid.errors import ParameterError
@@ -33,7 +36,7 @@ def simulate_drive_batch(
     max_events_per_step: int = 200,
     parallel: bool = False,
 ) -> list[DriveResult]:
-    """Simulate many drives of the same number of bodies in one compiled call (Monte Carlo).
+    """Simulate many drives of the same number of bodies in one call (Monte Carlo).
 
     Parameters
     ----------
@@ -56,8 +59,8 @@ def simulate_drive_batch(
     max_events_per_step : int
         Guard against chattering (Zeno) switching inside one step.
     parallel : bool
-        Spread the runs over numba's threads (``numba.set_num_threads``); default one
-        thread.
+        Run the drives in ``numba.get_num_threads()`` threads (set with
+        ``numba.set_num_threads`` or ``NUMBA_NUM_THREADS``); default one thread.
 
     Returns
     -------
@@ -75,8 +78,9 @@ def simulate_drive_batch(
     -----
     Always the event-located RK4 (for exact 1-DOF decays use
     :func:`simulate_free_decay_batch`). Drives with LuGre friction or a motor model run
-    one by one on the smooth integrator. The batch saves the Python overhead of one call
-    per run (validation, array set-up, result assembly), not integration work.
+    one by one on the smooth integrator. The batch saves no integration work over a loop of
+    :func:`simulate_drive` calls, only their per-call checks; ``parallel`` spreads it over
+    cores.
 
     Examples
     --------
@@ -118,13 +122,18 @@ def simulate_drive_batch(
                              max_events_per_step))
         idx.append(i)
     if runs:
-        kernel = _k.drive_batch_kernel_parallel if parallel else _k.drive_batch_kernel
-        out = kernel(
-            np.array([r["y0"] for r in runs]), np.array([r["modes0"] for r in runs]),
-            np.array([r["par"] for r in runs]), np.array([r["inp"] for r in runs]),
-            np.array([r["abort_limit"] for r in runs]), float(fs), runs[0]["n_out"],
-            np.array([r["n_sub"] for r in runs], dtype=np.int64), max_events_per_step)
-        for q, (i, run) in enumerate(zip(idx, runs, strict=True)):
-            results[i] = _finish(params_list[i], run, *(o[q] for o in out),
-                                 max_events_per_step)
+        def kernel(run):
+            return _k.drive_kernel(run["y0"], run["modes0"], run["par"], run["inp"],
+                                   run["abort_limit"], float(fs), run["n_out"], run["n_sub"],
+                                   max_events_per_step, False, np.zeros(2))
+
+        if parallel and len(runs) > 1:
+            # the kernel releases the GIL; threads rather than a compiled parallel loop,
+            # which would link (and compile) a second copy of the kernel
+            with ThreadPoolExecutor(min(numba.get_num_threads(), len(runs))) as pool:
+                outs = list(pool.map(kernel, runs))
+        else:
+            outs = [kernel(run) for run in runs]
+        for i, run, out in zip(idx, runs, outs, strict=True):
+            results[i] = _finish(params_list[i], run, *out[:8], max_events_per_step)
     return results
