@@ -212,6 +212,19 @@ class _Interrupted(Exception):
     """Ctrl-C inside a command, carried past click (which would print a blank line)."""
 
 
+def _show_compile_notice() -> None:
+    """Print the one-time kernel compilation notice (driveid.sim._compile_notice) on stderr."""
+    import logging
+
+    logger = logging.getLogger("driveid.compile")
+    if not logger.handlers:
+        handler = logging.StreamHandler()
+        handler.setFormatter(logging.Formatter("note: %(message)s"))
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO)
+        logger.propagate = False
+
+
 class _BoundaryGroup(LazyGroup):
     """The top-level group: runs the command inside the error and warning boundary."""
 
@@ -246,6 +259,8 @@ class _BoundaryGroup(LazyGroup):
             The exit status (only when ``standalone_mode`` is False).
         """
         _harden(self)
+        if sys.stderr.isatty():
+            _show_compile_notice()
         argv = list(sys.argv[1:] if args is None else args)
         debug = "--debug" in argv[:_first_command(argv, self)]
         status = 0

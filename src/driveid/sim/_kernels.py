@@ -28,6 +28,10 @@ import numpy as np
 from numba import njit
 from numba.core import cpu as _numba_cpu
 
+from driveid.sim import _compile_notice
+
+_compile_notice.install()
+
 # The time loop allocates nothing, so it is compiled without numba's reference counting
 # (``_nrt=False``, a private option: ~4x per step, the incref/decref calls dominated). Should a
 # numba release drop the option, the kernels compile as usual, only slower. Masses and
