@@ -37,3 +37,17 @@ def test_command_line_prints_it_on_a_terminal_only(monkeypatch, capsys):
     cli.cli.main(["--version"], standalone_mode=False)
     logger.info(MESSAGE)
     assert capsys.readouterr().err == f"note: {MESSAGE}\n"
+
+
+def test_warmup_loads_or_compiles_every_engine():
+    from click.testing import CliRunner
+
+    from driveid.cli import cli
+    from driveid.sim import _kernels, _smooth_kernels, lugre
+
+    result = CliRunner().invoke(cli, ["warmup"])
+    assert result.exit_code == 0 and "simulation kernels ready" in result.output, result.output
+    # each engine now has a compiled (or cache-loaded) entry point
+    assert _kernels.drive_kernel.signatures and _kernels.free_decay_batch_kernel.signatures
+    for module in (_smooth_kernels, lugre):
+        assert any(getattr(f, "signatures", None) for f in vars(module).values()), module
