@@ -7,10 +7,16 @@ scipy Radau at rtol = 1e-10, atol = (1e-12, 1e-12, 1e-14). Accuracy is max |x - 
 max |x_ref|; the target is 1e-4. The baseline is LSODA with per-state absolute tolerances
 (rtol times the state scales Fs/k, vs, Fs/sigma0), tightened by decades until it meets the
 target. Also shown: RK45 with solve_ivp's default tolerances, which returns no warning.
+First lines: compile time of the kernels with an empty numba cache (a fresh interpreter each,
+CPU seconds of its first simulation, so the machine's load matters less).
 Run: ``.venv/bin/python benchmarks/bench_lugre.py``.
 """
 
 import math
+import os
+import subprocess
+import sys
+import tempfile
 import time
 
 import numpy as np
@@ -35,6 +41,30 @@ def rhs(t, y):
     return [v, K * (BELT * t - x) - f, zd]
 
 
+COLD = {
+    "LuGre oscillator kernel (sim/lugre.py)":
+        "from driveid.sim.lugre import simulate_lugre_oscillator as f\n"
+        "call = lambda: f(P, m=1.0, k=2.0, belt_speed=0.1, duration=0.01)",
+    "smooth drive kernel, one LuGre body (sim/_smooth_kernels.py)":
+        "from driveid.sim import BodyParams, DriveParams, simulate_drive\n"
+        "d = DriveParams(bodies=(BodyParams(J=1.0, K=2.0, lugre=P),))\n"
+        "call = lambda: simulate_drive(d, duration=0.01, fs=1000.0, torque=[0.0])",
+}
+
+
+def cold_compile_seconds(setup):
+    """CPU seconds of a fresh interpreter's first call ``call()`` with an empty numba cache."""
+    code = ("import time\nfrom driveid.models.dynamic_friction import LuGreParams\n"
+            "P = LuGreParams(sigma0=1e5, sigma1=316.2, sigma2=0.4, fc=1.0, fs=1.5, vs=1e-3, "
+            "check_passivity=False)\n" + setup +
+            "\nc0 = time.process_time()\ncall()\nprint(time.process_time() - c0)")
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                             text=True, check=True)
+    return float(run.stdout.split()[-1])
+
+
 def rel_error(x, ref):
     return float(np.max(np.abs(x - ref)) / np.max(np.abs(ref)))
 
@@ -49,6 +79,8 @@ def best_time(fn, repeat):
 
 
 def main():
+    for name, setup in COLD.items():
+        print(f"compile with an empty cache, {name}: {cold_compile_seconds(setup):.2f} s CPU")
     t0 = time.perf_counter()
     simulate_lugre_oscillator(P, m=M, k=K, belt_speed=BELT, duration=0.01)
     print(f"first call (numba load/compile, cached on disk): {time.perf_counter() - t0:.2f} s")

@@ -409,3 +409,32 @@ def test_voltage_mode_is_eq_2_107_and_ideal_current_mode_rejects_the_back_emf():
     r = simulate_smooth(cur, duration=0.3, fs=1000.0, torque=[1.0], rtol=1e-10)
     w = km * ka / c * (1.0 - np.exp(-c * r.t / J))  # J w' = k_m k_a u - c w, no back-EMF
     assert _rel(r.v[0], w) < 1e-6  # measured 2.6e-12
+
+
+def test_delay_history_doubles_and_reads_repeated_event_times():
+    from driveid.sim._smooth_kernels import _delayed, _push
+
+    # x(t) is a cubic, so the cubic Hermite history (x from x, v; v from v, a) is exact
+    def x(t):
+        return 1.0 + 2.0 * t - t**2 + 0.5 * t**3
+
+    def v(t):
+        return 2.0 - 2.0 * t + 1.5 * t**2
+
+    def a(t):
+        return -2.0 + 3.0 * t
+
+    # 0.25 and 0.7 are contact events: the kernel stores both sides, a repeated time
+    times = (0.0, 0.1, 0.25, 0.25, 0.4, 0.7, 0.7, 1.0)
+    hist_t, hist_y, n_hist = np.empty(2), np.empty((3, 2)), 0
+    for tk in times:
+        hist_t, hist_y, n_hist = _push(hist_t, hist_y, n_hist, tk, np.array([x(tk), v(tk)]),
+                                       np.array([v(tk), a(tk)]), 0, 1)
+    assert n_hist == len(times) and hist_t.shape[0] == 8  # capacity 2 -> 4 -> 8
+    # at a repeated time the lookup must not take the zero-length interval between its two
+    # entries (0/0); past the end it extrapolates the last interval (exact for a cubic)
+    for td in (0.05, 0.1, 0.25, 0.3, 0.7, 0.95, 1.2):
+        xd, vd = _delayed(td, hist_t, hist_y, n_hist, -1.0, -1.0)
+        assert xd == pytest.approx(x(td), abs=1e-12)
+        assert vd == pytest.approx(v(td), abs=1e-12)
+    assert _delayed(0.0, hist_t, hist_y, n_hist, 3.0, 4.0) == (3.0, 4.0)  # the initial state

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-from driveid.sim._kernels import _interp
+from driveid.sim._kernels import _interp as _interp_inline
 from driveid.sim.lugre import _solve_inplace
 
 _A11, _A12, _A21, _A22 = 5.0 / 12.0, -1.0 / 12.0, 0.75, 0.25
@@ -24,15 +24,27 @@ _N_AUX = 5  # command, raw command, input power, friction power, contact power
 
 
 @njit(cache=True)
+def _interp(arr, row, tau, fs):
+    """``_kernels._interp`` as one compiled function, not inlined at each call site."""
+    return _interp_inline(arr, row, tau, fs)
+
+
+@njit(cache=True)
 def _delayed(td, hist_t, hist_y, n_hist, x0b, v0b):
     """Feedback-body position and velocity at ``td`` from the accepted-step history."""
     if td <= 0.0 or n_hist < 2:
         return x0b, v0b
-    k = np.searchsorted(hist_t[:n_hist], td) - 1
-    if k < 0:
-        k = 0
-    if k > n_hist - 2:
-        k = n_hist - 2
+    # first index with hist_t >= td (np.searchsorted's 'left'), by bisection: searchsorted
+    # compiles numba's generic sort comparators, seconds of compile for one lookup
+    lo = 0
+    hi = n_hist
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if hist_t[mid] < td:
+            lo = mid + 1
+        else:
+            hi = mid
+    k = min(max(lo - 1, 0), n_hist - 2)
     h = hist_t[k + 1] - hist_t[k]
     s = (td - hist_t[k]) / h
     s2 = s * s
@@ -129,7 +141,7 @@ def _bodies_state(y, lay, xfix, xb, vb):
             vb[i] = 0.0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _hermite(s, h, y0, f0, y1, f1, out):
     """Cubic Hermite interpolant of a step at the fraction ``s`` of its length ``h``."""
     h00 = (1.0 + 2.0 * s) * (1.0 - s) ** 2
@@ -246,9 +258,12 @@ def _rhs(t, y, md, hist_t, hist_y, n_hist, x0b, v0b, sc, dy, aux):
     aux[4] = p_contact
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _add(jac, row, col, value):
-    """Add to a Jacobian entry; a negative index is a state that does not exist."""
+    """Add to a Jacobian entry; a negative index is a state that does not exist.
+
+    A plain call (LLVM inlines it): numba's IR inlining at its 22 call sites cost compile time.
+    """
     if row >= 0 and col >= 0:
         jac[row, col] += value
 
@@ -386,18 +401,24 @@ def _filtered_error(h, g, k1, f1, jac, m, err, y0, y1, atol, rtol):
 
 
 @njit(cache=True)
-def _push(hist_t, hist_y, n_hist, t, x, v, a):
-    """Append (t, x, v, a) to the delay history, doubling its capacity when full."""
+def _push(hist_t, hist_y, n_hist, t, y, dy, ix, iv):
+    """Append (t, x, v, a) of the state entries ``ix``, ``iv`` to the delay history.
+
+    The capacity doubles when full; entries from ``n_hist`` on are never read.
+    """
     if n_hist == hist_t.shape[0]:
-        nt = np.zeros(2 * n_hist)
-        nyy = np.zeros((3, 2 * n_hist))
-        nt[:n_hist] = hist_t[:n_hist]
-        nyy[:, :n_hist] = hist_y[:, :n_hist]
+        nt = np.empty(2 * n_hist)
+        nyy = np.empty((3, 2 * n_hist))
+        # element loops: a slice assignment compiles numba's shape-error message formatting
+        for i in range(n_hist):
+            nt[i] = hist_t[i]
+            for r in range(3):
+                nyy[r, i] = hist_y[r, i]
         hist_t, hist_y = nt, nyy
     hist_t[n_hist] = t
-    hist_y[0, n_hist] = x
-    hist_y[1, n_hist] = v
-    hist_y[2, n_hist] = a
+    hist_y[0, n_hist] = y[ix]
+    hist_y[1, n_hist] = y[iv]
+    hist_y[2, n_hist] = dy[iv]
     return hist_t, hist_y, n_hist + 1
 
 
@@ -413,8 +434,12 @@ def _smooth_kernel(y_init, lay, xfix, bpar, lpar, fpar, mpar, inp, fs_in, atol, 
     n = y_init.shape[0]
     nb = bpar.shape[0]
     nl = nb - 1
-    out = np.full((n + 6, n_out), np.nan)
-    release = np.zeros(1)
+    # np.empty only, filled here: np.full, np.zeros and np.ones each compile their own code
+    out = np.empty((n + 6, n_out))
+    for i in range(n + 6):
+        for k in range(n_out):
+            out[i, k] = np.nan
+    release = np.empty(1)
     xb = np.empty(nb)
     vb = np.empty(nb)
     force = np.empty(nb)
@@ -436,24 +461,31 @@ def _smooth_kernel(y_init, lay, xfix, bpar, lpar, fpar, mpar, inp, fs_in, atol, 
     rhs2 = np.empty(2 * n)
     zst = np.empty(2 * n)
     m1 = np.empty((n, n))
-    e0 = np.zeros(3)  # input, friction, contact work at the step start
-    e1 = np.zeros(3)
+    e0 = np.empty(3)  # input, friction, contact work at the step start
+    e1 = np.empty(3)
+    ebuf = np.empty(3)
     p0 = np.empty(3)
     p1 = np.empty(3)
-    counts = np.zeros(2, dtype=np.int64)
+    for i in range(3):
+        e0[i] = 0.0
+    counts = np.empty(2, dtype=np.int64)
+    counts[0] = 0
+    counts[1] = 0
     has_fb = fpar[0] != 0.0
-    delay = fpar[4] if has_fb else 0.0
     fbb = int(fpar[1]) if has_fb else 0
-    hist_t = np.zeros(1024 if (has_fb and delay > 0.0) else 2)
-    hist_y = np.zeros((3, hist_t.shape[0]))
-    n_hist = 0
-    x0b = y0[lay[0, fbb]] if has_fb else 0.0
-    v0b = y0[lay[1, fbb]] if has_fb else 0.0
+    ixb = lay[0, fbb]
+    ivb = lay[1, fbb]
+    use_hist = has_fb and fpar[4] > 0.0  # a delayed PD reads the history
+    hist_t = np.empty(1024 if use_hist else 2)
+    hist_y = np.empty((3, hist_t.shape[0]))
+    n_hist = np.int64(0)  # not the literal 0: that would compile the callees twice
+    x0b = y0[ixb] if has_fb else 0.0
+    v0b = y0[ivb] if has_fb else 0.0
 
     lpar = lpar.copy()  # column 6 holds the contact modes, changed at events
     md = (lay, xfix, bpar, lpar, fpar, mpar, inp, fs_in)
     sc = (xb, vb, force)
-    phi = np.ones(max(nl, 1))
+    phi = np.empty(max(nl, 1))
     t = 0.0
     _bodies_state(y0, lay, xfix, xb, vb)
     for _r in range(2):  # contacts already closed at t = 0
@@ -462,9 +494,8 @@ def _smooth_kernel(y_init, lay, xfix, bpar, lpar, fpar, mpar, inp, fs_in, atol, 
     _rhs(t, y0, md, hist_t, hist_y, n_hist, x0b, v0b, sc, f0, aux)
     for i in range(3):
         p0[i] = aux[2 + i]
-    if has_fb and delay > 0.0:
-        hist_t, hist_y, n_hist = _push(hist_t, hist_y, n_hist, 0.0, y0[lay[0, fbb]],
-                                       y0[lay[1, fbb]], f0[lay[1, fbb]])
+    if use_hist:
+        hist_t, hist_y, n_hist = _push(hist_t, hist_y, n_hist, 0.0, y0, f0, ixb, ivb)
     for i in range(n):
         out[i, 0] = y0[i]
     out[n, 0] = aux[0]
@@ -472,19 +503,21 @@ def _smooth_kernel(y_init, lay, xfix, bpar, lpar, fpar, mpar, inp, fs_in, atol, 
     out[n + 5, 0] = 0.0
     for i in range(3):
         out[n + 1 + i, 0] = 0.0
-    vsign = np.zeros(nb)
+    vsign = np.empty(nb)
     for i in range(nb):
         vsign[i] = 1.0 if vb[i] > 0.0 else (-1.0 if vb[i] < 0.0 else 0.0)
-    targeted = False  # the current step was shortened to end just past a contact event
+    # loop state starts typed (np.int64, np.bool_), not as literals: type inference then
+    # settles in 2 passes over the kernel instead of 4
+    targeted = np.bool_(False)  # the step was shortened to end just past a contact event
     margin = 1e-12 * max(t_end, 1.0)
 
     newton_tol = max(10.0 * 2.2e-16 / rtol, min(0.03, math.sqrt(rtol)))
     h = min(1e-5, t_end, h_cap)
-    next_out = 1
-    n_acc = 0
-    n_rej = 0
-    prev_rejected = False
-    first = True
+    next_out = np.int64(1)
+    n_acc = np.int64(0)
+    n_rej = np.int64(0)
+    prev_rejected = np.bool_(False)
+    first = np.bool_(True)
     h_min = 1e-14 * max(t_end, 1.0)
     while t < t_end and next_out < n_out:
         if n_acc + n_rej >= max_steps:
@@ -560,7 +593,7 @@ def _smooth_kernel(y_init, lay, xfix, bpar, lpar, fpar, mpar, inp, fs_in, atol, 
         # find the crossing on the step's Hermite interpolant and redo the step to just past
         _bodies_state(y1, lay, xfix, xb, vb)
         _link_phi(lpar, xb, vb, phi)
-        violated = False
+        violated = np.bool_(False)
         for j in range(nl):
             if phi[j] < 0.0:
                 violated = True
@@ -601,16 +634,12 @@ def _smooth_kernel(y_init, lay, xfix, bpar, lpar, fpar, mpar, inp, fs_in, atol, 
             if ts > t1 * (1.0 + 1e-14):
                 break
             s = min(max((ts - t) / h, 0.0), 1.0)
-            h00 = (1.0 + 2.0 * s) * (1.0 - s) ** 2
-            h10 = s * (1.0 - s) ** 2
-            h01 = s * s * (3.0 - 2.0 * s)
-            h11 = s * s * (s - 1.0)
             _hermite(s, h, y0, f0, y1, f1, tmp2)
+            _hermite(s, h, e0, p0, e1, p1, ebuf)
             for i in range(n):
                 out[i, next_out] = tmp2[i]
             for i in range(3):
-                out[n + 1 + i, next_out] = (h00 * e0[i] + h10 * h * p0[i] + h01 * e1[i]
-                                            + h11 * h * p1[i])
+                out[n + 1 + i, next_out] = ebuf[i]
             _rhs(ts, tmp2, md, hist_t, hist_y, n_hist, x0b, v0b, sc, fp, aux_b)
             out[n, next_out] = aux_b[0]
             out[n + 4, next_out] = aux_b[1]
@@ -628,18 +657,16 @@ def _smooth_kernel(y_init, lay, xfix, bpar, lpar, fpar, mpar, inp, fs_in, atol, 
                 vsign[i] = sg
         if violated:
             counts[1] += _switch_links(lpar, xb, vb, release)
-        if has_fb and delay > 0.0:
-            hist_t, hist_y, n_hist = _push(hist_t, hist_y, n_hist, t1, y1[lay[0, fbb]],
-                                           y1[lay[1, fbb]], f1[lay[1, fbb]])
+        if use_hist:
+            hist_t, hist_y, n_hist = _push(hist_t, hist_y, n_hist, t1, y1, f1, ixb, ivb)
         if violated:
             # new modes: right-hand derivative at t1 (the history keeps both sides, a
             # repeated time, so that each interval is interpolated with its own mode)
             _rhs(t1, y1, md, hist_t, hist_y, n_hist, x0b, v0b, sc, f1, aux)
             for i in range(3):
                 p1[i] = aux[2 + i]
-            if has_fb and delay > 0.0:
-                hist_t, hist_y, n_hist = _push(hist_t, hist_y, n_hist, t1, y1[lay[0, fbb]],
-                                               y1[lay[1, fbb]], f1[lay[1, fbb]])
+            if use_hist:
+                hist_t, hist_y, n_hist = _push(hist_t, hist_y, n_hist, t1, y1, f1, ixb, ivb)
         t = t1
         for i in range(n):
             y0[i] = y1[i]

@@ -46,6 +46,9 @@ from numba import njit
 
 from driveid.errors import ParameterError, SimulationError
 from driveid.models.dynamic_friction import LuGreParams, lugre_friction
+from driveid.sim import _compile_notice
+
+_compile_notice.install()
 
 __all__ = ["LuGreResult", "simulate_lugre_oscillator"]
 
@@ -61,7 +64,9 @@ _MAX_NEWTON = 10
 _MAX_STEPS = 50_000_000
 
 
-@njit(cache=True, inline="always")
+# _rhs and _jac are plain calls, not inline="always": LLVM inlines them into the kernel all
+# the same (equal run time), without numba copying their IR to each of the 9 call sites
+@njit(cache=True)
 def _rhs(t, x, v, z, par, out):
     """Right-hand side; ``par`` = (m, k, c, vb, sigma0, sigma1, sigma2, fc, fs, vs)."""
     m, k, c, vb = par[0], par[1], par[2], par[3]
@@ -74,7 +79,7 @@ def _rhs(t, x, v, z, par, out):
     out[2] = zd
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _jac(v, z, par, jac):
     """Analytic d(rhs)/d(x, v, z); the sign(v) of the |v| kink is taken as 0 at v = 0."""
     m, k, c = par[0], par[1], par[2]
@@ -160,11 +165,13 @@ def _lugre_radau_kernel(y_init, par, atol, rtol, t_end, fs, n_out, max_steps):
     t = 0.0
     _rhs(t, y0[0], y0[1], y0[2], par, f0)
     h = min(1e-5, t_end)
-    next_out = 1
-    n_acc = 0
-    n_rej = 0
-    prev_rejected = False
-    first = True
+    # loop state starts typed (np.int64, np.bool_), not as literals: type inference then
+    # settles in 2 passes over the kernel instead of 4
+    next_out = np.int64(1)
+    n_acc = np.int64(0)
+    n_rej = np.int64(0)
+    prev_rejected = np.bool_(False)
+    first = np.bool_(True)
     h_min = 1e-14 * max(t_end, 1.0)
     while t < t_end and next_out < n_out:
         if n_acc + n_rej >= max_steps:
