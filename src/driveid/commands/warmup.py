@@ -1,6 +1,6 @@
 """``driveid warmup``: compile the simulation kernels once, ahead of the first simulation.
 
-The simulators' numba kernels are compiled on first use (about 20 s) and cached on disk
+The simulators' numba kernels are compiled on first use (about 30 s) and cached on disk
 (numba's cache: beside the package, or ``NUMBA_CACHE_DIR``). On a terminal the command line
 says so when it happens (:mod:`driveid.sim._compile_notice`); this command does it ahead.
 """
@@ -19,7 +19,7 @@ __all__ = ["warmup_command"]
 @click.command("warmup")
 @clean_errors
 def warmup_command() -> None:
-    """Compile and cache the simulation kernels now (about 20 s after an install)."""
+    """Compile and cache the simulation kernels now (about 30 s after an install)."""
     from driveid.models.dynamic_friction import LuGreParams
     from driveid.sim import (
         BodyParams,

@@ -1,7 +1,7 @@
 """A one-time notice when numba compiles one of the simulation kernels.
 
 The first simulation after an install (or after the kernels' source changed) compiles the
-numba kernels, about 20 s, and then loads them from numba's on-disk cache. numba broadcasts
+numba kernels (about 30 s for all of them), and then loads them from numba's on-disk cache. numba broadcasts
 its ``"numba:compile"`` event only when it really compiles, not when it loads the cache, so
 the notice is exact wherever the cache lives (beside the package, ``NUMBA_CACHE_DIR``, or a
 per-user directory when the package's folder is read-only).
@@ -18,7 +18,7 @@ from numba.core import event
 
 __all__ = ["MESSAGE", "install"]
 
-MESSAGE = ("compiling the simulation kernels, once, about 20 s (cached afterwards; "
+MESSAGE = ("compiling the simulation kernels, once, about 30 s (cached afterwards; "
            "'driveid warmup' does it ahead)")
 _LOG = logging.getLogger("driveid.compile")
 
