@@ -1,10 +1,10 @@
 """A one-time notice when numba compiles one of the simulation kernels.
 
 The first simulation after an install (or after the kernels' source changed) compiles the
-numba kernels (about 30 s for all of them), and then loads them from numba's on-disk cache. numba broadcasts
-its ``"numba:compile"`` event only when it really compiles, not when it loads the cache, so
-the notice is exact wherever the cache lives (beside the package, ``NUMBA_CACHE_DIR``, or a
-per-user directory when the package's folder is read-only).
+numba kernels (about 30 s for all of them), later ones load numba's on-disk cache. numba
+broadcasts its ``"numba:compile"`` event only when it really compiles, not when it loads the
+cache, so the notice is exact wherever the cache lives (beside the package,
+``NUMBA_CACHE_DIR``, or a per-user directory when the package's folder is read-only).
 
 The notice is an INFO record of the ``driveid.compile`` logger: silent for library users
 unless they enable logging; the command line prints it on an interactive terminal.
