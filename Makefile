@@ -16,8 +16,9 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/driveid demo
 
+# all cores (pytest-xdist); `$(BIN)/python -m pytest` alone runs the suite serially
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n auto
 	$(BIN)/ruff check src tests benchmarks examples
 
 bench: $(STAMP)
