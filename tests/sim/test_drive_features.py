@@ -232,14 +232,15 @@ def test_restitution_link_errors():
 
 
 # ------------------------------------------------------------------ batch
-def test_batch_equals_single_runs():
+@pytest.mark.parametrize("parallel", [False, True])
+def test_batch_equals_single_runs(parallel):
     rng = np.random.default_rng(3)
     fb = PDFeedback(P=5.0, D=0.3, delay=0.01, reference=1.0)
     plants = [_w3_plant(fb, rng.uniform(0.7, 1.3, 7)) for _ in range(4)]
     plants.append(_w3_plant(None))  # feedback may differ inside a batch
     x0 = np.zeros((5, 3))
     x0[:, 2] = rng.uniform(-0.1, 0.1, 5)
-    batch = simulate_drive_batch(plants, duration=1.0, x0=x0)
+    batch = simulate_drive_batch(plants, duration=1.0, x0=x0, parallel=parallel)
     for p, b, x in zip(plants, batch, x0, strict=True):
         one = simulate_drive(p, duration=1.0, x0=x)
         # the same compiled kernel on the same inputs: round-off at most

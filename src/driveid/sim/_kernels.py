@@ -240,7 +240,7 @@ def _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1, k2
 
     Inlined into :func:`_integrate` at its one call site, and the three later stages run as a
     loop over one inlined :func:`_deriv`: every inlined copy multiplies numba's compile time
-    (17 copies of the force evaluation took ~50 s to compile; the loop costs nothing per step).
+    (17 copies of the force evaluation took ~90 s to compile; the loop costs nothing per step).
     """
     ny = y.shape[0]
     for stage in range(3):

@@ -130,8 +130,11 @@ def simulate_drive_batch(
         if parallel and len(runs) > 1:
             # the kernel releases the GIL; threads rather than a compiled parallel loop,
             # which would link (and compile) a second copy of the kernel
-            with ThreadPoolExecutor(min(numba.get_num_threads(), len(runs))) as pool:
+            pool = ThreadPoolExecutor(min(numba.get_num_threads(), len(runs)))
+            try:
                 outs = list(pool.map(kernel, runs))
+            finally:  # on Ctrl-C only the runs in progress finish, the queued ones are dropped
+                pool.shutdown(wait=True, cancel_futures=True)
         else:
             outs = [kernel(run) for run in runs]
         for i, run, out in zip(idx, runs, outs, strict=True):
