@@ -15,8 +15,7 @@ import numba
 import numpy as np
 
 from driveid.errors import ParameterError
-from driveid.sim import _kernels as _k
-from driveid.sim.drive import _finish, _prepare, simulate_drive
+from driveid.sim.drive import _finish, _prepare, _run_kernel, simulate_drive
 from driveid.sim.drive_types import DriveParams, DriveResult, _require
 from driveid.sim.free_decay_batch import FreeDecayBatch, simulate_free_decay_batch
 
@@ -123,9 +122,7 @@ def simulate_drive_batch(
         idx.append(i)
     if runs:
         def kernel(run):
-            return _k.drive_kernel(run["y0"], run["modes0"], run["par"], run["inp"],
-                                   run["abort_limit"], float(fs), run["n_out"], run["n_sub"],
-                                   max_events_per_step, False, np.zeros(2))
+            return _run_kernel(run, fs, max_events_per_step)
 
         if parallel and len(runs) > 1:
             # the kernel releases the GIL; threads rather than a compiled parallel loop,

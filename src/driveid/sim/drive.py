@@ -292,10 +292,15 @@ def simulate_drive(
     if method != "rk4" and exact_ok:
         return _simulate_exact(params, duration, fs, run["x0"], run["v0"],
                                float(torque[0, 0]))
-    out = _k.drive_kernel(run["y0"], run["modes0"], run["par"], run["inp"],
-                          run["abort_limit"], float(fs), run["n_out"], run["n_sub"],
-                          max_events_per_step, False, np.zeros(2))
-    return _finish(params, run, *out[:8], max_events_per_step)
+    return _finish(params, run, *_run_kernel(run, fs, max_events_per_step)[:8],
+                   max_events_per_step)
+
+
+def _run_kernel(run: dict, fs: float, max_events: int) -> tuple:
+    """One fresh (not resumed) run of the event-located RK4 kernel on ``_prepare``'s inputs."""
+    return _k.drive_kernel(run["y0"], run["modes0"], run["par"], run["inp"],
+                           run["abort_limit"], float(fs), run["n_out"], run["n_sub"],
+                           max_events, False, np.zeros(2))
 
 
 def _prepare(params, duration, fs, x0, v0, torque, reference, max_step, max_events,
