@@ -13,13 +13,22 @@ import click
 
 from driveid.commands import clean_errors
 
-__all__ = ["warmup_command"]
+__all__ = ["GROUPS", "compile_kernels", "warmup_command"]
+
+#: Kernel groups of similar compile time, so two processes can compile them side by side
+#: (the test suite does): the event-located RK4 drive and the exact free-decay batch; the
+#: stiff (Radau) drive path and the LuGre oscillator.
+GROUPS = ("drive", "smooth")
 
 
-@click.command("warmup")
-@clean_errors
-def warmup_command() -> None:
-    """Compile and cache the simulation kernels now (about 30 s after an install)."""
+def compile_kernels(group: str | None = None) -> None:
+    """Compile the kernels of one of :data:`GROUPS` (None: all), or load them from the cache.
+
+    Parameters
+    ----------
+    group : {"drive", "smooth"}, optional
+        The group; all of them when None.
+    """
     from driveid.models.dynamic_friction import LuGreParams
     from driveid.sim import (
         BodyParams,
@@ -30,12 +39,22 @@ def warmup_command() -> None:
     )
     from driveid.sim.presets import preset
 
+    if group in (None, "drive"):
+        simulate_drive(preset("testbed"), duration=0.05)  # event-located RK4
+        simulate_free_decay_batch(J=1.0, K=2.0, c_mean=0.1, fk_mean=0.01, x0=1.0,
+                                  duration=0.05)
+    if group in (None, "smooth"):
+        lugre = LuGreParams(sigma0=1e5, sigma1=300.0, sigma2=0.4, fc=1.0, fs=1.5, vs=1e-3,
+                            check_passivity=False)
+        simulate_drive(DriveParams(bodies=(BodyParams(J=1.0, K=2.0, lugre=lugre),)),
+                       duration=0.05, x0=[0.1])  # stiff Radau path
+        simulate_lugre_oscillator(lugre, m=1.0, k=2.0, belt_speed=0.1, duration=0.05)
+
+
+@click.command("warmup")
+@clean_errors
+def warmup_command() -> None:
+    """Compile and cache the simulation kernels now (about 30 s after an install)."""
     start = time.perf_counter()
-    lugre = LuGreParams(sigma0=1e5, sigma1=300.0, sigma2=0.4, fc=1.0, fs=1.5, vs=1e-3,
-                        check_passivity=False)
-    simulate_drive(preset("testbed"), duration=0.05)            # event-located RK4 kernels
-    simulate_drive(DriveParams(bodies=(BodyParams(J=1.0, K=2.0, lugre=lugre),)),
-                   duration=0.05, x0=[0.1])                      # stiff Radau path
-    simulate_lugre_oscillator(lugre, m=1.0, k=2.0, belt_speed=0.1, duration=0.05)
-    simulate_free_decay_batch(J=1.0, K=2.0, c_mean=0.1, fk_mean=0.01, x0=1.0, duration=0.05)
+    compile_kernels()
     click.echo(f"simulation kernels ready ({time.perf_counter() - start:.1f} s)")
