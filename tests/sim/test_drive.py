@@ -240,10 +240,11 @@ def test_simulate_drive_errors():
         simulate_drive(d, duration=1.0, method="euler")
     with pytest.raises(ParameterError, match="params must be a DriveParams"):
         simulate_drive(BodyParams(J=1.0), duration=1.0)
-    # a 2 s step holds two reversals of a 1.57 s-period oscillator: the chattering guard
+    # a 2 s step holds two reversals of a 1.57 s-period oscillator with friction: the
+    # chattering guard (a body without friction has no reversal events)
     with pytest.raises(SimulationError, match="max_events_per_step=1"):
-        simulate_drive(_one_body(J=1.0, K=16.0), x0=[1.0], duration=10.0, fs=0.5, max_step=2.0,
-                       max_events_per_step=1, method="rk4")
+        simulate_drive(_one_body(J=1.0, K=16.0, fk_mean=0.01), x0=[1.0], duration=10.0,
+                       fs=0.5, max_step=2.0, max_events_per_step=1, method="rk4")
 
 
 def test_batch_errors():

@@ -44,9 +44,10 @@ _HOT_LOOP = {"error_model": "numpy", "fastmath": {"contract", "arcp"}}
 if hasattr(_numba_cpu.CPUTargetOptions, "_nrt"):
     _HOT_LOOP["_nrt"] = False
 
-# body modes
+# body modes (slipping bodies: the sign of their velocity, +-1)
 LOCKED = 2
 STUCK = 0
+FREE = 3  # no friction that depends on the velocity's sign: no velocity-zero events
 # link types
 LINK_NONE = 0
 LINK_SHAFT = 1
@@ -208,7 +209,7 @@ def _validity(y, nb, modes, par, work, phi):
     """
     for i in range(nb):
         m = modes[i]
-        if m == LOCKED:
+        if m == LOCKED or m == FREE:
             phi[i] = 1.0
         elif m == STUCK:
             f = work[i]
@@ -274,6 +275,62 @@ def _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, 
 
 
 @njit(cache=True, inline="always")
+def _stride_error(k1, k4, nb, s, rtol, pos_scale, vel_scale):
+    """Error estimate of the last RK4 step of size ``s`` over its tolerance (> 1: too large).
+
+    The embedded third-order solution ``y + s (k1/6 + k2/3 + k3/3 + k5/6)``, with k5 the
+    derivative at the step's end (the next step's first stage, so free), differs from RK4 by
+    ``s (k4 - k5)/6``. The tolerance is ``rtol`` times the largest position (velocity)
+    magnitude of any body so far; the energy integrals are not checked.
+    """
+    r = 0.0
+    for i in range(2 * nb):
+        d = abs(k4[i] - k1[i]) * s / 6.0
+        if d > 0.0:
+            tol = rtol * (pos_scale if i < nb else vel_scale)
+            r = max(r, d / tol) if tol > 0.0 else math.inf
+    return r
+
+
+@njit(cache=True, inline="always")
+def _before_kink(hist, k0, m, d_grid):
+    """Longest stride from grid point k0, at most m steps, whose delayed reads meet no kink.
+
+    An event in grid step j makes the delayed feedback kink in steps j + d_grid .. j + 1 +
+    d_grid; RK4 across a kink loses its order (error ~ step² times the jump), so a stride
+    ends before it and the step holding it is one grid step, as without strides.
+    """
+    first = max(int(math.floor(k0 - d_grid)) - 1, 0)
+    last = min(int(math.ceil(k0 + m - d_grid)), k0)
+    for j in range(first, last + 1):
+        if hist[3, j] != 0.0 and j + 1 + d_grid > k0:
+            return max(1, min(m, int(math.floor(j + d_grid - k0))))
+    return m
+
+
+@njit(cache=True, **_HOT_LOOP)
+def _fill_history(hist, k0, m, h, x0, v0, a0, x1, v1, a1):
+    """Feedback history at the grid points inside an accepted stride of m steps from k0.
+
+    Cubic Hermite of the stride's ends (position from x, v; velocity from v, a; acceleration
+    its derivative): the same interpolant a delayed read across the stride would use.
+    """
+    big = m * h
+    for j in range(1, m):
+        s = j / m
+        s2 = s * s
+        s3 = s2 * s
+        h00 = 2 * s3 - 3 * s2 + 1
+        h10 = (s3 - 2 * s2 + s) * big
+        h01 = -2 * s3 + 3 * s2
+        h11 = (s3 - s2) * big
+        hist[0, k0 + j] = h00 * x0 + h10 * v0 + h01 * x1 + h11 * v1
+        hist[1, k0 + j] = h00 * v0 + h10 * a0 + h01 * v1 + h11 * a1
+        hist[2, k0 + j] = ((6 * s2 - 6 * s) * v0 + (3 * s2 - 4 * s + 1) * big * a0
+                           + (6 * s - 6 * s2) * v1 + (3 * s2 - 2 * s) * big * a1) / big
+
+
+@njit(cache=True, inline="always")
 def _any_stuck(modes, nb):
     for i in range(nb):
         if modes[i] == STUCK:
@@ -315,7 +372,7 @@ def _impulse(y, nb, j, modes, par, side, pen, counts, energy_jump):
     y[j + 1] += side * pen * w2
     energy_jump[1] += 0.5 * mu * (1.0 - e * e) * vrel * vrel
     for i in (j, j + 1):
-        if modes[i] != LOCKED and y[nb + i] != 0.0:
+        if modes[i] != LOCKED and modes[i] != FREE and y[nb + i] != 0.0:
             new = 1 if y[nb + i] > 0.0 else -1
             if new != modes[i]:
                 counts[0] += 1
@@ -332,7 +389,7 @@ def _resolve(y, nb, modes, par, work, counts, energy_jump):
     """
     for i in range(nb):
         m = modes[i]
-        if m == LOCKED:
+        if m == LOCKED or m == FREE:
             continue
         f = work[i]
         if m == STUCK:
@@ -384,15 +441,17 @@ def _resolve(y, nb, modes, par, work, counts, energy_jump):
 
 @njit(cache=True, nogil=True)
 def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_events,
-                 resume, jump0):
+                 resume, jump0, rtol, max_stride):
     """Integrate the chain; see :func:`driveid.sim.drive.simulate_drive`.
 
-    ``modes0``: per body LOCKED or 1, then 0 per link; with ``resume`` the modes of a
+    ``modes0``: per body LOCKED, FREE or 1, then 0 per link; with ``resume`` the modes of a
     previous call (bodies keep STUCK, contacts their side) and ``jump0`` its release and
     impact losses, so a run can continue interval by interval. Returns (x_out, v_out,
     cmd_out, energy_out, counts, status, abort_index, abort_value, modes) where energy_out
     rows are input work, dissipation (bodies, shafts), contact work, contact release loss,
-    energy stored in closed contacts, restitution impact loss.
+    energy stored in closed contacts, restitution impact loss. ``rtol`` > 0 lets the
+    integrator stride over up to ``max_stride`` grid steps at once where its error estimate
+    allows (see :func:`_integrate`); 0 takes every grid step.
     """
     nb = (modes0.shape[0] + 1) // 2
     nl = nb - 1
@@ -409,6 +468,8 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
     ys = np.zeros(ny)
     ytry = np.zeros(ny)
     yend = np.zeros(ny)
+    ysave = np.zeros(ny)
+    k1save = np.zeros(ny)
     phi0 = np.zeros(nb + nl)
     phiy = np.zeros(nb + nl)
     phi1 = np.zeros(nb + nl)
@@ -420,18 +481,18 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
     e_out = np.full((6, n_out), np.nan)
     has_fb = par[fbr, 0] != 0.0
     fbb = int(par[fbr, 1]) if has_fb else 0
-    hist = np.zeros((3, n_steps + 2 if has_fb else 2))
+    hist = np.zeros((4, n_steps + 2 if has_fb else 2))
     status, abort_index, abort_value = _integrate(
-        y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume, n_steps, work, k1,
-        k2, k3, k4, ys, ytry, yend, phi0, phiy, phi1, counts, jump, x_out, v_out, cmd_out,
-        e_out, hist, y0[fbb], y0[nb + fbb])
+        y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume, n_steps, rtol,
+        max_stride, work, k1, k2, k3, k4, ys, ytry, yend, ysave, k1save, phi0, phiy, phi1,
+        counts, jump, x_out, v_out, cmd_out, e_out, hist, y0[fbb], y0[nb + fbb])
     return x_out, v_out, cmd_out, e_out, counts, status, abort_index, abort_value, modes
 
 
 @njit(cache=True, **_HOT_LOOP)
 def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume, n_steps,
-               work, k1, k2, k3, k4, ys, ytry, yend, phi0, phiy, phi1, counts, jump, x_out,
-               v_out, cmd_out, e_out, hist, x0b, v0b):
+               rtol, max_stride, work, k1, k2, k3, k4, ys, ytry, yend, ysave, k1save, phi0,
+               phiy, phi1, counts, jump, x_out, v_out, cmd_out, e_out, hist, x0b, v0b):
     """Run the time loop of :func:`drive_kernel` on its preallocated arrays.
 
     Compiled without reference counting (``_nrt=False``: it allocates nothing). The hot
@@ -454,7 +515,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     # initial modes: bodies at rest stick or break away, contacts already closed
     if not resume:
         for i in range(nb):
-            if modes[i] != LOCKED:
+            if modes[i] != LOCKED and modes[i] != FREE:
                 modes[i] = -1 if y[nb + i] < 0 else 1
     for _ in range(3):
         _forces_and_validity(0.0, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
@@ -463,12 +524,28 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     if not resume:
         counts[0] = 0
         counts[1] = 0
-    for step in range(n_steps + 1):
+    # strides (rtol > 0): up to an output interval, and short of the delay so that every
+    # delayed read during a stride falls on history nodes already written
+    max_stride = min(max_stride, n_sub)
+    if has_fb and par[fbr, 4] > 0.0:
+        max_stride = min(max_stride, int(math.ceil(par[fbr, 4] / h - 1e-9)) - 1)
+    adaptive = rtol > 0.0 and max_stride > 1
+    pos_scale = 0.0
+    vel_scale = 0.0
+    m = 1  # grid steps in the step being taken
+    m_pref = 1
+    clean = False  # the step just taken was one RK4 step without events: its estimate holds
+    step0 = 0
+    step = 0
+    d_grid = par[fbr, 4] / h if has_fb else 0.0  # the delay in grid steps
+    if has_fb:
+        hist[3, 0] = 1.0  # the delayed read leaves the initial state: a kink
+    while True:
         t = step * h
         if has_fb:
             hist[0, step] = y[fbb]
             hist[1, step] = y[nb + fbb]
-        # advance one grid step, splitting it at every event
+        # advance from grid point `step` by m grid steps, splitting at every event
         tau = t
         remaining = h
         n_ev = 0
@@ -479,22 +556,66 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             cmd = _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1)
             if grid_point:
                 grid_point = False
-                if has_fb:
-                    hist[2, step] = k1[nb + fbb]
-                    xd, vd = _delayed(t, par[fbr, 4], h, hist, x0b, v0b, y[fbb], y[nb + fbb])
-                    raw = par[fbr, 2] * (_interp(inp, nb, t, fs_in) - xd) - par[fbr, 3] * vd
-                    if abs(raw) > abort_limit:
-                        status = ABORTED
-                        abort_index = step
-                        abort_value = raw
+                rolled_back = False
+                if adaptive:
+                    for i in range(nb):
+                        pos_scale = max(pos_scale, abs(y[i]))
+                        vel_scale = max(vel_scale, abs(y[nb + i]))
+                    r = _stride_error(k1, k4, nb, m * h, rtol, pos_scale, vel_scale) if clean \
+                        else math.inf
+                    if m > 1 and r > 1.0:
+                        # the stride missed its tolerance: take it again in grid steps
+                        rolled_back = True
+                        step = step0
+                        t = step * h
+                        tau = t
+                        for i in range(ny):
+                            y[i] = ysave[i]
+                            k1[i] = k1save[i]
+                        m_pref = 1
+                    else:
+                        if m > 1 and has_fb:
+                            _fill_history(hist, step0, m, h, ysave[fbb], ysave[nb + fbb],
+                                          k1save[nb + fbb], y[fbb], y[nb + fbb], k1[nb + fbb])
+                        # the estimate grows as the 4th power of the step: double while
+                        # 16 r stays below 1/2, halve above 1/2
+                        if r * 32.0 <= 1.0:
+                            m_pref = 2 * m
+                        elif r * 2.0 > 1.0:
+                            m_pref = max(1, m // 2)
+                        else:
+                            m_pref = m
+                if not rolled_back:
+                    if has_fb:
+                        hist[2, step] = k1[nb + fbb]
+                        xd, vd = _delayed(t, par[fbr, 4], h, hist, x0b, v0b, y[fbb],
+                                          y[nb + fbb])
+                        raw = (par[fbr, 2] * (_interp(inp, nb, t, fs_in) - xd)
+                               - par[fbr, 3] * vd)
+                        if abs(raw) > abort_limit:
+                            status = ABORTED
+                            abort_index = step
+                            abort_value = raw
+                            break
+                    else:
+                        cmd = 0.0
+                    if step % n_sub == 0:
+                        _store(step // n_sub, y, nb, modes, par, cmd, jump, x_out, v_out,
+                               cmd_out, e_out)
+                    if step == n_steps:
                         break
-                else:
-                    cmd = 0.0
-                if step % n_sub == 0:
-                    _store(step // n_sub, y, nb, modes, par, cmd, jump, x_out, v_out, cmd_out,
-                           e_out)
-                if step == n_steps:
-                    break
+                m = 1
+                if adaptive:
+                    m = min(m_pref, max_stride, n_sub - step % n_sub, n_steps - step)
+                    if has_fb and m > 1:
+                        m = _before_kink(hist, step, m, d_grid)
+                    if m > 1:
+                        step0 = step
+                        for i in range(ny):
+                            ysave[i] = y[i]
+                            k1save[i] = k1[i]
+                remaining = m * h
+                clean = False
             stuck = _any_stuck(modes, nb)
             # phases: the full remaining step; an Illinois secant on the step length for each
             # event function that went negative; the step to just past the earliest one
@@ -515,10 +636,14 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                 if final:
                     break
                 if full:
-                    full = False
                     e = _next_event(phi1, -1)
                     if e < 0:
                         break
+                    if m > 1:  # a stride meets an event: one grid step, located as usual
+                        m = 1
+                        remaining = s = s_first = h
+                        continue
+                    full = False
                     _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b,
                                          v0b, work, phiy)
                 else:
@@ -563,6 +688,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             if first < 0:
                 for i in range(ny):
                     y[i] = yend[i]
+                clean = n_ev == 0
                 break
             # switch modes just past the event
             for i in range(ny):
@@ -576,6 +702,8 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                                      work, no_phi)
                 _resolve(y, nb, modes, par, work, counts, jump)
             n_ev += 1
+            if has_fb:
+                hist[3, step] = 1.0  # the delayed feedback will have a kink here
             if n_ev > max_events:
                 status = TOO_MANY_EVENTS
                 abort_index = step
@@ -584,6 +712,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                 break
         if status != OK or step == n_steps:
             break
+        step += m
     return status, abort_index, abort_value
 
 

@@ -32,6 +32,7 @@ def simulate_drive_batch(
     torque=None,
     reference=None,
     max_step: float | None = None,
+    rtol: float | None = None,
     max_events_per_step: int = 200,
     parallel: bool = False,
 ) -> list[DriveResult]:
@@ -54,7 +55,9 @@ def simulate_drive_batch(
         Feedback reference [rad] at the output times for every run (default each run's
         ``feedback.reference``).
     max_step : float, optional
-        Largest RK4 step [s] (default per run as in :func:`simulate_drive`).
+        RK4 step [s] (default per run as in :func:`simulate_drive`).
+    rtol : float, optional
+        Step-size control as in :func:`simulate_drive` (default ``None``: every step).
     max_events_per_step : int
         Guard against chattering (Zeno) switching inside one step.
     parallel : bool
@@ -118,7 +121,7 @@ def simulate_drive_batch(
             results[i] = simulate_drive(p, **kw)
             continue
         runs.append(_prepare(p, duration, fs, x0s[i], v0s[i], torque, reference, max_step,
-                             max_events_per_step))
+                             max_events_per_step, rtol))
         idx.append(i)
     if runs:
         def kernel(run):

@@ -383,7 +383,8 @@ class DriveResult:
         simulator may add keys; the balance ``initial + input = kinetic + potential +
         dissipated`` must hold.
     n_mode_switches : int
-        Stick, breakaway and reversal transitions of the bodies [-].
+        Stick, breakaway and reversal transitions of the bodies [-] (a body whose friction
+        is viscous alone has none: the sign of its velocity changes nothing).
     n_impacts : int
         Contact closures of the backlash links [-].
     aborted : bool
