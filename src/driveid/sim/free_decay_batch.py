@@ -3,7 +3,7 @@
 The engine behind ``method="exact"`` of :func:`driveid.sim.drive.simulate_drive` and the
 Monte-Carlo path of :mod:`driveid.sim.batch` (which re-exports it): the exact piecewise
 closed form of :mod:`driveid.sim.oscillator` (thesis 2.136-2.157) compiled in
-:func:`driveid.sim._kernels.free_decay_batch_kernel`.
+:func:`driveid.sim._free_decay_kernel.free_decay_batch_kernel`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from driveid.errors import ParameterError, SimulationError
-from driveid.sim import _kernels as _k
+from driveid.sim import _free_decay_kernel as _k
 from driveid.sim.drive_types import _require
 
 __all__ = ["FreeDecayBatch", "simulate_free_decay_batch"]
