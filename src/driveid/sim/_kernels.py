@@ -148,7 +148,10 @@ def _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work):
 
 @njit(cache=True, inline="always")
 def _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy):
-    """State derivative: x', v', then input work, dissipation, contact work rates."""
+    """State derivative: x', v', then input work, dissipation, contact work rates.
+
+    The three energy rates only if the state carries the energy integrals (length 2 nb + 3).
+    """
     cmd = _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
     nl = nb - 1
     fbr = nb + nl
@@ -174,6 +177,8 @@ def _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy):
         dy[nb + i] = (work[i] - fric) / par[i, 0]
         p_in += ext * v
         p_diss += fric * v
+    if dy.shape[0] == 2 * nb:  # no energy integrals: positions and velocities only
+        return cmd
     for j in range(nl):
         r = nb + j
         vrel = y[nb + j] - y[nb + j + 1]
@@ -444,19 +449,22 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
                  resume, jump0, rtol, max_stride):
     """Integrate the chain; see :func:`driveid.sim.drive.simulate_drive`.
 
-    ``modes0``: per body LOCKED, FREE or 1, then 0 per link; with ``resume`` the modes of a
-    previous call (bodies keep STUCK, contacts their side) and ``jump0`` its release and
-    impact losses, so a run can continue interval by interval. Returns (x_out, v_out,
-    cmd_out, energy_out, counts, status, abort_index, abort_value, modes) where energy_out
-    rows are input work, dissipation (bodies, shafts), contact work, contact release loss,
-    energy stored in closed contacts, restitution impact loss. ``rtol`` > 0 lets the
-    integrator stride over up to ``max_stride`` grid steps at once where its error estimate
-    allows (see :func:`_integrate`); 0 takes every grid step.
+    ``y0``: positions, velocities, then the three energy integrals (zeros at the start), or
+    positions and velocities alone (length 2 nb): the run then skips the energy bookkeeping,
+    about a sixth of a step, and leaves energy_out rows 0-2 NaN. ``modes0``: per body
+    LOCKED, FREE or 1, then 0 per link; with ``resume`` the modes of a previous call (bodies
+    keep STUCK, contacts their side) and ``jump0`` its release and impact losses, so a run
+    can continue interval by interval. Returns (x_out, v_out, cmd_out, energy_out, counts,
+    status, abort_index, abort_value, modes) where energy_out rows are input work,
+    dissipation (bodies, shafts), contact work, contact release loss, energy stored in
+    closed contacts, restitution impact loss. ``rtol`` > 0 lets the integrator stride over
+    up to ``max_stride`` grid steps at once where its error estimate allows (see
+    :func:`_integrate`); 0 takes every grid step.
     """
     nb = (modes0.shape[0] + 1) // 2
     nl = nb - 1
     fbr = nb + nl
-    ny = 2 * nb + 3
+    ny = y0.shape[0]
     n_steps = (n_out - 1) * n_sub
     y = y0.copy()
     modes = modes0.copy()
@@ -504,7 +512,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     nb = (modes.shape[0] + 1) // 2
     nl = nb - 1
     fbr = nb + nl
-    ny = 2 * nb + 3
+    ny = y.shape[0]
     h = 1.0 / (fs_in * n_sub)
     has_fb = par[fbr, 0] != 0.0
     fbb = int(par[fbr, 1]) if has_fb else 0
@@ -723,9 +731,10 @@ def _store(o, y, nb, modes, par, cmd, jump, x_out, v_out, cmd_out, e_out):
         x_out[i, o] = y[i]
         v_out[i, o] = y[nb + i]
     cmd_out[o] = cmd
-    e_out[0, o] = y[2 * nb]
-    e_out[1, o] = y[2 * nb + 1]
-    e_out[2, o] = y[2 * nb + 2]
+    if y.shape[0] > 2 * nb:
+        e_out[0, o] = y[2 * nb]
+        e_out[1, o] = y[2 * nb + 1]
+        e_out[2, o] = y[2 * nb + 2]
     e_out[3, o] = jump[0]
     stored = 0.0
     for j in range(nb - 1):

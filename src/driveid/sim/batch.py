@@ -125,7 +125,7 @@ def simulate_drive_batch(
         idx.append(i)
     if runs:
         def kernel(run):
-            return _run_kernel(run, fs, max_events_per_step)
+            return _run_kernel(run, max_events_per_step)
 
         if parallel and len(runs) > 1:
             # the kernel releases the GIL; threads rather than a compiled parallel loop,

@@ -189,7 +189,7 @@ def simulate_drive(
         integrator strides over several grid steps at once (up to the output interval, the
         stability limit ``2.5/rate`` and short of the delay), and retakes a stride in grid
         steps if its estimate fails. A run that settles then costs little (three-body drive
-        of ``benchmarks/bench_drive.py``: 3.6 ms instead of 13 ms at the same all-state
+        of ``benchmarks/bench_drive.py``, rtol 1e-9: 3.8 ms instead of 13.4 ms at the same
         error). Default ``None``: every grid step, as the thesis's fixed-step RK4. Strides
         check the event functions at their end, as steps do: a contact shorter than a
         stride can be missed, so keep ``None`` where brief touches matter. Not with a
@@ -236,9 +236,11 @@ def simulate_drive(
     Notes
     -----
     Energy balance closed by the result: ``initial + input = kinetic + potential +
-    dissipated``; a contact that opens (no-tension rule) with residual penetration ``δ``
-    loses its stored ``k δ²/2``, booked as dissipated, and so is the loss of restitution
-    impacts.
+    dissipated``, computed when ``result.energy`` is first read (the event-located RK4 then
+    runs once more, with the three energy integrals it otherwise skips: about the cost of
+    the simulation again, the same trajectory to the bit); a contact that opens (no-tension
+    rule) with residual penetration ``δ`` loses its stored ``k δ²/2``, booked as
+    dissipated, and so is the loss of restitution impacts.
 
     The controller callback is sampled with a zero-order hold, as on real hardware (a
     digital controller reads the encoders, computes, and holds its DAC output until the
@@ -306,15 +308,23 @@ def simulate_drive(
     if method != "rk4" and exact_ok:
         return _simulate_exact(params, duration, fs, run["x0"], run["v0"],
                                float(torque[0, 0]))
-    return _finish(params, run, *_run_kernel(run, fs, max_events_per_step)[:8],
+    return _finish(params, run, *_run_kernel(run, max_events_per_step)[:8],
                    max_events_per_step)
 
 
-def _run_kernel(run: dict, fs: float, max_events: int) -> tuple:
-    """One fresh (not resumed) run of the event-located RK4 kernel on ``_prepare``'s inputs."""
-    return _k.drive_kernel(run["y0"], run["modes0"], run["par"], run["inp"],
-                           run["abort_limit"], float(fs), run["n_out"], run["n_sub"],
-                           max_events, False, np.zeros(2), run["rtol"], run["max_stride"])
+def _run_kernel(run: dict, max_events: int, energy: bool = False) -> tuple:
+    """One fresh (not resumed) run of the event-located RK4 kernel on ``_prepare``'s inputs.
+
+    Without ``energy`` the kernel integrates positions and velocities only (a sixth less
+    work a step) and the energy row block is returned as None; :func:`_finish` then runs
+    the kernel again with the energy integrals when the balance is first read.
+    """
+    nb = run["x0"].size
+    y0 = run["y0"] if energy else run["y0"][:2 * nb].copy()
+    out = _k.drive_kernel(y0, run["modes0"], run["par"], run["inp"], run["abort_limit"],
+                          run["fs"], run["n_out"], run["n_sub"], max_events, False,
+                          np.zeros(2), run["rtol"], run["max_stride"])
+    return out if energy else (*out[:3], None, *out[4:])
 
 
 def _prepare(params, duration, fs, x0, v0, torque, reference, max_step, max_events,
@@ -395,7 +405,13 @@ def _finish(params, run, x, v, cmd, e, counts, status, abort_index, abort_value,
         abort_time = abort_index * h
         reason = (f"|command| = {abs(abort_value):.6g} N·m before saturation exceeded "
                   f"abort_limit={run['abort_limit']:g} N·m at t={abort_time:.6g} s")
-    energy = _LazyEnergy(lambda: _energy(params, x, v, e, run["x0"], run["v0"]))
+    def balance() -> dict:
+        # the kernel ran without the energy integrals: run it again with them (the same
+        # trajectory: they do not feed back, and tests/sim checks it bitwise)
+        rows = e if e is not None else _run_kernel(run, max_events, energy=True)[3]
+        return _energy(params, x, v, rows, run["x0"], run["v0"])
+
+    energy = _LazyEnergy(balance)
     return DriveResult(t=run["t"], x=x, v=v, command=cmd, energy=energy,
                        n_mode_switches=int(counts[0]), n_impacts=int(counts[1]),
                        aborted=aborted, abort_reason=reason, abort_time=abort_time,
@@ -539,7 +555,8 @@ class _LazyEnergy(Mapping):
     """The energy balance of a result, computed on first access.
 
     Half of a short single run's cost was this bookkeeping (kinetic and potential energy
-    arrays of every sample); most callers want positions only, so it waits until asked.
+    arrays of every sample), and the energy integrals a sixth of every RK4 step; most
+    callers want positions only, so it waits until asked.
     """
 
     def __init__(self, build) -> None:
