@@ -37,9 +37,15 @@ _compile_notice.install()
 # (``_nrt=False``, a private option: ~4x per step, the incref/decref calls dominated). Should a
 # numba release drop the option, the kernels compile as usual, only slower. Masses and
 # stiffnesses are validated positive, so divisions need no zero check (numpy error model, -5 %
-# per step, results identical); fused multiply-adds and reciprocals change results by round-off
-# only (-7 %; not the no-NaN/no-inf flags: outputs start as NaN, the abort limit may be inf).
-_HOT_LOOP = {"error_model": "numpy", "fastmath": {"contract", "arcp"}}
+# per step, results identical); reciprocals (``arcp``) change results by round-off only (-7 %
+# with fused multiply-adds, now as much without). Not ``contract``: an FMA is fused or not
+# depending on the code around it, so the forces of the inlined step and of the separately
+# compiled cold paths differed in the last bit, and an event function at a band edge was
+# negative for one and not the other (the event loop never ended). The force evaluation
+# itself has no division (the delay history multiplies by reciprocals), so ``arcp`` leaves it
+# the same everywhere. Not the no-NaN/no-inf flags: outputs start as NaN, the abort limit may
+# be inf.
+_HOT_LOOP = {"error_model": "numpy", "fastmath": {"arcp"}}
 if hasattr(_numba_cpu.CPUTargetOptions, "_nrt"):
     _HOT_LOOP["_nrt"] = False
 
@@ -52,6 +58,9 @@ LINK_NONE = 0
 LINK_SHAFT = 1
 LINK_BACKLASH = 2
 LINK_IMPACT = 3  # restitution contact; compliant (as LINK_BACKLASH) while resting
+# delay history, row 3 of a grid step: 0, EVENT (an event inside), or the column (>= 2) of
+# the node of its first event
+EVENT = 1.0
 # status codes
 OK = 0
 ABORTED = 1
@@ -86,23 +95,50 @@ def _hermite(s, h):
 
 
 @njit(cache=True, inline="always")
+def _ring(delay, h):
+    """Slots of the ring of event nodes in the delay history: the grid steps of a delay, + 3."""
+    return int(math.ceil(delay / h - 1e-9)) + 3
+
+
+@njit(cache=True, inline="always")
 def _delayed(tau, delay, h, hist, x0, v0, now_x, now_v):
     """Position and velocity of the feedback body at ``tau - delay`` (cubic Hermite).
 
-    hist rows: position, velocity, acceleration at the grid points ``k h``.
+    hist rows: position, velocity, acceleration and a flag (0, EVENT or a node's column) at
+    the grid points ``k h``, then a ring of event nodes, two columns each
+    (:func:`drive_kernel`). In a grid step with a node the read uses two Hermite pieces
+    split at the event, so the kink the event left in the motion is not smoothed over
+    (Hermite across it errs by ~h² times the jump of the acceleration).
     """
     if delay == 0.0:
         return now_x, now_v
     td = tau - delay
     if td <= 0.0:
         return x0, v0
-    pos = td / h
+    pos = td * (1.0 / h)
     k = int(math.floor(pos))
     if k >= hist.shape[1] - 1:
         k = hist.shape[1] - 2
-    h00, h10, h01, h11 = _hermite(pos - k, h)
-    x = h00 * hist[0, k] + h10 * hist[1, k] + h01 * hist[0, k + 1] + h11 * hist[1, k + 1]
-    v = h00 * hist[1, k] + h10 * hist[2, k] + h01 * hist[1, k + 1] + h11 * hist[2, k + 1]
+    s = pos - k
+    span = h
+    xa, va, aa = hist[0, k], hist[1, k], hist[2, k]
+    xb, vb, ab = hist[0, k + 1], hist[1, k + 1], hist[2, k + 1]
+    if hist[3, k] > EVENT:
+        c = int(hist[3, k])  # [offset, x, v before, a before], [v after, a after]
+        sec = s * h
+        # at the event itself (to round-off) the piece after it: every read from a step
+        # that starts at the kink then agrees, and so do the event functions there
+        if sec < hist[0, c] - 1e-9 * h:
+            span = hist[0, c]
+            xb, vb, ab = hist[1, c], hist[2, c], hist[3, c]
+        else:
+            sec -= hist[0, c]
+            span = h - hist[0, c]
+            xa, va, aa = hist[1, c], hist[0, c + 1], hist[1, c + 1]
+        s = sec * (1.0 / span)
+    h00, h10, h01, h11 = _hermite(s, span)
+    x = h00 * xa + h10 * va + h01 * xb + h11 * vb
+    v = h00 * va + h10 * aa + h01 * vb + h11 * ab
     return x, v
 
 
@@ -147,6 +183,24 @@ def _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work):
 
 
 @njit(cache=True, inline="always")
+def _friction(y, nb, i, m, par):
+    """Friction force of slipping body i in direction m (its mode) [N·m or N]."""
+    level = par[i, 4]
+    if par[i, 8] != 0.0:  # friction ripple periodic in position (drive_types)
+        level += par[i, 8] * math.sin(par[i, 9] * y[i] + par[i, 10])
+    return (par[i, 2] + par[i, 3] * m) * y[nb + i] + level * m + par[i, 5]
+
+
+@njit(cache=True, **_HOT_LOOP)
+def _acceleration(y, nb, i, modes, par, work):
+    """Acceleration of body i in its mode, from the forces in ``work`` (computed at y)."""
+    m = modes[i]
+    if m == LOCKED or m == STUCK:
+        return 0.0
+    return (work[i] - _friction(y, nb, i, m, par)) / par[i, 0]
+
+
+@njit(cache=True, inline="always")
 def _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy):
     """State derivative: x', v', then input work, dissipation, contact work rates.
 
@@ -169,10 +223,7 @@ def _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy):
         ext = _interp(inp, i, tau, fs_in)
         if i == fb_body:
             ext += cmd
-        level = par[i, 4]
-        if par[i, 8] != 0.0:  # friction ripple periodic in position (drive_types)
-            level += par[i, 8] * math.sin(par[i, 9] * y[i] + par[i, 10])
-        fric = (par[i, 2] + par[i, 3] * m) * v + level * m + par[i, 5]
+        fric = _friction(y, nb, i, m, par)
         dy[i] = v
         dy[nb + i] = (work[i] - fric) / par[i, 0]
         p_in += ext * v
@@ -489,7 +540,8 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
     e_out = np.full((6, n_out), np.nan)
     has_fb = par[fbr, 0] != 0.0
     fbb = int(par[fbr, 1]) if has_fb else 0
-    hist = np.zeros((4, n_steps + 2 if has_fb else 2))
+    ring = _ring(par[fbr, 4], 1.0 / (fs_in * n_sub)) if has_fb and par[fbr, 4] > 0.0 else 0
+    hist = np.zeros((4, (n_steps + 2 if has_fb else 2) + 2 * ring))
     status, abort_index, abort_value = _integrate(
         y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume, n_steps, rtol,
         max_stride, work, k1, k2, k3, k4, ys, ytry, yend, ysave, k1save, phi0, phiy, phi1,
@@ -546,8 +598,18 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     step0 = 0
     step = 0
     d_grid = par[fbr, 4] / h if has_fb else 0.0  # the delay in grid steps
+    delayed = has_fb and par[fbr, 4] > 0.0
+    ring = _ring(par[fbr, 4], h) if delayed else 0
+    n_grid = hist.shape[1] - 2 * ring
     if has_fb:
-        hist[3, 0] = 1.0  # the delayed read leaves the initial state: a kink
+        hist[3, 0] = EVENT  # the delayed read leaves the initial state: a kink
+    pending_node = -1  # an event node's column still waiting for its acceleration after
+    # the next kink of the delayed feedback: one delay after each event node (and at the
+    # delay itself, where the read leaves the initial state); RK4 across a kink in its input
+    # loses its order, so a step ends there. Nodes come in time order: a scan of the grid
+    # flags up to the current step finds them in turn.
+    kink_next = par[fbr, 4] if delayed else math.inf
+    kink_scan = 0
     while True:
         t = step * h
         if has_fb:
@@ -562,6 +624,9 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             # the derivative at (tau, y) in the current modes: the first RK4 stage of every
             # trial step from here, and at a grid point the feedback's acceleration history
             cmd = _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1)
+            if pending_node >= 0:
+                hist[1, pending_node + 1] = k1[nb + fbb]
+                pending_node = -1
             if grid_point:
                 grid_point = False
                 rolled_back = False
@@ -581,6 +646,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                             y[i] = ysave[i]
                             k1[i] = k1save[i]
                         m_pref = 1
+                        kink_scan = min(kink_scan, step)
                     else:
                         if m > 1 and has_fb:
                             _fill_history(hist, step0, m, h, ysave[fbb], ysave[nb + fbb],
@@ -625,14 +691,27 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                 remaining = m * h
                 clean = False
             stuck = _any_stuck(modes, nb)
-            # phases: the full remaining step; an Illinois secant on the step length for each
+            # the step ends at the next kink of the delayed feedback, if one comes first
+            s_lim = remaining
+            if delayed:
+                if kink_next <= tau + 1e-9 * h or kink_next == math.inf:
+                    kink_next = math.inf
+                    while kink_scan < step:
+                        f = hist[3, kink_scan]
+                        kink_scan += 1
+                        if f > EVENT:
+                            kink_next = (kink_scan - 1) * h + hist[0, int(f)] + par[fbr, 4]
+                            break
+                if tau + 1e-9 * h < kink_next < tau + remaining - 1e-9 * h:
+                    s_lim = kink_next - tau
+            # phases: the full step; an Illinois secant on the step length for each
             # event function that went negative; the step to just past the earliest one
             full = True
             final = False
-            s = remaining
+            s = s_lim
             e = -1
             first = -1
-            s_first = remaining
+            s_first = s_lim
             lo = hi = flo = fhi = 0.0
             side = 0
             it = 0
@@ -648,8 +727,8 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                     if e < 0:
                         break
                     if m > 1:  # a stride meets an event: one grid step, located as usual
-                        m = 1
-                        remaining = s = s_first = h
+                        m = 1  # (strides end before kinks, so this step holds none)
+                        remaining = s_lim = s = s_first = h
                         continue
                     full = False
                     _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b,
@@ -683,9 +762,9 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                         final = True
                         s = s_first
                         continue
-                # bracket the zero of event function e on [0, remaining]
+                # bracket the zero of event function e on [0, s_lim]
                 lo = 0.0
-                hi = remaining
+                hi = s_lim
                 flo = max(phiy[e], 0.0)
                 fhi = phi1[e]
                 side = 0
@@ -696,7 +775,11 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             if first < 0:
                 for i in range(ny):
                     y[i] = yend[i]
-                clean = n_ev == 0
+                if s_lim < remaining:  # at a kink: go on from it
+                    tau += s_lim
+                    remaining -= s_lim
+                    continue
+                clean = n_ev == 0 and s_lim == m * h
                 break
             # switch modes just past the event
             for i in range(ny):
@@ -705,13 +788,27 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             remaining -= s_first
             if first < nb and modes[first] != STUCK:
                 y[nb + first] = 0.0
+            if delayed and hist[3, step] <= EVENT and 0.0 < tau - t < h:
+                # the first event of this grid step becomes a node of the delay history:
+                # offset, position, velocity and acceleration before the switch, then after
+                c = n_grid + 2 * (step % ring)
+                _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b,
+                                     work, no_phi)
+                hist[0, c] = tau - t
+                hist[1, c] = y[fbb]
+                hist[2, c] = y[nb + fbb]
+                hist[3, c] = _acceleration(y, nb, fbb, modes, par, work)
+                pending_node = c
             for _r in range(3):
                 _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b,
                                      work, no_phi)
                 _resolve(y, nb, modes, par, work, counts, jump)
             n_ev += 1
-            if has_fb:
-                hist[3, step] = 1.0  # the delayed feedback will have a kink here
+            if pending_node >= 0:
+                hist[0, pending_node + 1] = y[nb + fbb]  # velocity after (impacts change it)
+                hist[3, step] = pending_node
+            elif has_fb and hist[3, step] == 0.0:
+                hist[3, step] = EVENT  # the delayed feedback will have a kink here
             if n_ev > max_events:
                 status = TOO_MANY_EVENTS
                 abort_index = step
