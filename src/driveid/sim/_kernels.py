@@ -376,6 +376,12 @@ def _fill_history(hist, k0, m, h, x0, v0, a0, x1, v1, a1):
     its derivative): the same interpolant a delayed read across the stride would use.
     """
     big = m * h
+    if x0 == x1 and v0 == 0.0 and v1 == 0.0 and a0 == 0.0 and a1 == 0.0:  # stuck: at rest
+        for j in range(1, m):
+            hist[0, k0 + j] = x0
+            hist[1, k0 + j] = 0.0
+            hist[2, k0 + j] = 0.0
+        return
     for j in range(1, m):
         s = j / m
         s2 = s * s

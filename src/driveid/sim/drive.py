@@ -188,8 +188,8 @@ def simulate_drive(
         a step is below ``rtol`` times the largest position (velocity) magnitude so far, the
         integrator strides over several grid steps at once (up to the output interval, the
         stability limit ``2.5/rate`` and short of the delay), and retakes a stride in grid
-        steps if its estimate fails. A run that settles then costs little (three-body drive
-        of ``benchmarks/bench_drive.py``, rtol 1e-9: 3.8 ms instead of 13.4 ms at the same
+        steps if its estimate fails. A run that settles then costs little (the three-body
+        drive of ``benchmarks/bench_drive.py``, rtol 1e-9: about 3.5x faster at the same
         error). Default ``None``: every grid step, as the thesis's fixed-step RK4. Strides
         check the event functions at their end, as steps do: a contact shorter than a
         stride can be missed, so keep ``None`` where brief touches matter. Not with a
