@@ -19,6 +19,10 @@ stage at a point is computed once and serves every trial step of the event searc
 delay history; the forces at a step's end are computed only while a body is stuck. Each
 helper is inlined at one call site only: numba's inlining copies it at every site, and 17
 copies of the force evaluation took 90 s to compile (now about 15 s).
+
+One file on purpose: numba's on-disk cache checks only the source file of the function it
+caches, so a helper of :func:`_integrate` kept in another module could change and leave a
+stale compiled kernel in every user's cache.
 """
 
 from __future__ import annotations
