@@ -798,9 +798,11 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             remaining -= s_first
             if first < nb and modes[first] != STUCK:
                 y[nb + first] = 0.0
-            if delayed and hist[3, step] <= EVENT and 0.0 < tau - t < h:
+            if delayed and hist[3, step] <= EVENT and 1e-6 * h < tau - t < h - 1e-6 * h:
                 # the first event of this grid step becomes a node of the delay history:
                 # offset, position, velocity and acceleration before the switch, then after
+                # (not within 1e-6 h of a grid point: a piece that short would extrapolate
+                # the reads that round-off puts on its wrong side)
                 c = n_grid + 2 * (step % ring)
                 _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b,
                                      work, no_phi)
