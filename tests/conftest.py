@@ -31,7 +31,7 @@ def _kernel_cache_is_stale() -> bool:
     import driveid.sim
 
     folder = Path(driveid.sim.__file__).parent
-    for name in ("_kernels", "_smooth_kernels", "lugre"):
+    for name in ("_kernels", "_free_decay_kernel", "_smooth_kernels", "lugre"):
         indexes = list((folder / "__pycache__").glob(f"{name}.*.nbi"))
         if not indexes or max(p.stat().st_mtime for p in indexes) < (
                 folder / f"{name}.py").stat().st_mtime:

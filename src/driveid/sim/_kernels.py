@@ -123,27 +123,36 @@ def _delayed(tau, delay, h, hist, x0, v0, now_x, now_v):
     k = int(math.floor(pos))
     if k >= hist.shape[1] - 1:
         k = hist.shape[1] - 2
-    s = pos - k
-    span = h
-    xa, va, aa = hist[0, k], hist[1, k], hist[2, k]
-    xb, vb, ab = hist[0, k + 1], hist[1, k + 1], hist[2, k + 1]
-    if hist[3, k] > EVENT:
-        c = int(hist[3, k])  # [offset, x, v before, a before], [v after, a after]
-        sec = s * h
-        # at the event itself (to round-off) the piece after it: every read from a step
-        # that starts at the kink then agrees, and so do the event functions there
-        if sec < hist[0, c] - 1e-9 * h:
-            span = hist[0, c]
-            xb, vb, ab = hist[1, c], hist[2, c], hist[3, c]
-        else:
-            sec -= hist[0, c]
-            span = h - hist[0, c]
-            xa, va, aa = hist[1, c], hist[0, c + 1], hist[1, c + 1]
-        s = sec * (1.0 / span)
-    h00, h10, h01, h11 = _hermite(s, span)
-    x = h00 * xa + h10 * va + h01 * xb + h11 * vb
-    v = h00 * va + h10 * aa + h01 * vb + h11 * ab
+    if hist[3, k] > EVENT:  # rare: a separate function keeps the inlined copies small
+        return _delayed_at_node(hist, k, pos - k, h)
+    h00, h10, h01, h11 = _hermite(pos - k, h)
+    x = h00 * hist[0, k] + h10 * hist[1, k] + h01 * hist[0, k + 1] + h11 * hist[1, k + 1]
+    v = h00 * hist[1, k] + h10 * hist[2, k] + h01 * hist[1, k + 1] + h11 * hist[2, k + 1]
     return x, v
+
+
+@njit(cache=True, **_HOT_LOOP)
+def _delayed_at_node(hist, k, s, h):
+    """Read the delay history like :func:`_delayed`, at fraction ``s`` of node step k.
+
+    Node columns: [offset, x, v before, a before], [v after, a after]. At the event itself
+    (to round-off) the piece after it: every read from a step that starts at the kink then
+    agrees, and so do the event functions there.
+    """
+    c = int(hist[3, k])
+    sec = s * h
+    if sec < hist[0, c] - 1e-9 * h:
+        span = hist[0, c]
+        xa, va, aa = hist[0, k], hist[1, k], hist[2, k]
+        xb, vb, ab = hist[1, c], hist[2, c], hist[3, c]
+    else:
+        sec -= hist[0, c]
+        span = h - hist[0, c]
+        xa, va, aa = hist[1, c], hist[0, c + 1], hist[1, c + 1]
+        xb, vb, ab = hist[0, k + 1], hist[1, k + 1], hist[2, k + 1]
+    h00, h10, h01, h11 = _hermite(sec * (1.0 / span), span)
+    return (h00 * xa + h10 * va + h01 * xb + h11 * vb,
+            h00 * va + h10 * aa + h01 * vb + h11 * ab)
 
 
 @njit(cache=True, inline="always")
