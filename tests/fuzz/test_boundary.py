@@ -156,15 +156,6 @@ def test_real_process_internal_error_exit_70(tmp_path):
     assert "Traceback" not in res.stderr
 
 
-def _interrupt(args, delay, tmp_path):
-    proc = subprocess.Popen([str(DRIVEID), *args], cwd=tmp_path, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    time.sleep(delay)
-    proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=120)
-    return proc.returncode, err
-
-
 def _interrupt_after_import(args, module, tmp_path):
     """Send Ctrl-C as soon as the child has imported ``module`` (None: its first import).
 
@@ -211,9 +202,17 @@ def test_ctrl_c_during_start_up_is_one_line_exit_130(tmp_path, module, duration)
 
 @needs_script
 def test_ctrl_c_inside_the_work_leaves_no_partial_file(tmp_path):
-    # long enough that the signal arrives during simulation or writing, never after
-    code, err = _interrupt(["simulate", "free-decay", "--out", "x.csv", "--duration", "3000",
-                            "--rate", "5000"], 6.0, tmp_path)
+    # 15 million rows: the signal goes as soon as the writer's temporary file appears, so it
+    # arrives while writing (a fixed delay landed anywhere on a loaded machine, and cost 6 s)
+    proc = subprocess.Popen([str(DRIVEID), "simulate", "free-decay", "--out", "x.csv",
+                             "--duration", "3000", "--rate", "5000"], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120.0
+    while not os.listdir(tmp_path) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    code = proc.returncode
     if code == 0:  # pragma: no cover
         pytest.skip("the command finished before the signal")
     assert code == EXIT_INTERRUPTED, err
