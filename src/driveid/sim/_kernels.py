@@ -312,27 +312,35 @@ def _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1, k2
     trial step of the event search; the forces at the end are needed only when a body is
     stuck (no other event function reads them).
 
-    Inlined into :func:`_integrate` at its one call site, and the three later stages run as a
-    loop over one inlined :func:`_deriv`: every inlined copy multiplies numba's compile time
-    (17 copies of the force evaluation took ~90 s to compile; the loop costs nothing per step).
+    Inlined into :func:`_integrate` at its one call site, and the three later stages, and
+    the forces at the end, run as a loop over one inlined :func:`_deriv`: every inlined copy
+    multiplies numba's compile time (17 copies of the force evaluation took ~90 s to compile;
+    a separate copy for the end forces cost 4 s; the loop costs nothing per step).
     """
     ny = y.shape[0]
-    for stage in range(3):
-        c = s if stage == 2 else 0.5 * s
-        src = k1 if stage == 0 else (k2 if stage == 1 else k3)
-        dst = k2 if stage == 0 else (k3 if stage == 1 else k4)
-        for i in range(ny):
-            ys[i] = y[i] + c * src[i]
-        _deriv(tau + c, ys, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dst)
-    for i in range(ny):
-        out[i] = y[i] + s / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-    # stuck and locked bodies keep their position exactly
-    for i in range(nb):
-        if modes[i] == LOCKED or modes[i] == STUCK:
-            out[i] = y[i]
-            out[nb + i] = 0.0
-    if any_stuck:
-        _forces(tau + s, out, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
+    for stage in range(4):
+        if stage < 3:
+            c = s if stage == 2 else 0.5 * s
+            src = k1 if stage == 0 else (k2 if stage == 1 else k3)
+            for i in range(ny):
+                ys[i] = y[i] + c * src[i]
+            state = ys
+            dst = k2 if stage == 0 else (k3 if stage == 1 else k4)
+        else:
+            for i in range(ny):
+                out[i] = y[i] + s / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+            # stuck and locked bodies keep their position exactly
+            for i in range(nb):
+                if modes[i] == LOCKED or modes[i] == STUCK:
+                    out[i] = y[i]
+                    out[nb + i] = 0.0
+            if not any_stuck:
+                break
+            # the forces at the end for the breakaway test (the rates land in ys, unused)
+            c = s
+            state = out
+            dst = ys
+        _deriv(tau + c, state, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dst)
     _validity(out, nb, modes, par, work, phi)
 
 
