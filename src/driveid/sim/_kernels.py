@@ -312,35 +312,29 @@ def _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1, k2
     trial step of the event search; the forces at the end are needed only when a body is
     stuck (no other event function reads them).
 
-    Inlined into :func:`_integrate` at its one call site, and the three later stages, and
-    the forces at the end, run as a loop over one inlined :func:`_deriv`: every inlined copy
-    multiplies numba's compile time (17 copies of the force evaluation took ~90 s to compile;
-    a separate copy for the end forces cost 4 s; the loop costs nothing per step).
+    Inlined into :func:`_integrate` at its one call site, and the three later stages run as a
+    loop over one inlined :func:`_deriv`: every inlined copy multiplies numba's compile time
+    (17 copies of the force evaluation took ~90 s to compile; the loop costs nothing per step).
+    The end forces as a fourth pass of that loop compiled 3 s faster but cost one-body runs
+    ~20 % a step, so they keep their own copy.
     """
     ny = y.shape[0]
-    for stage in range(4):
-        if stage < 3:
-            c = s if stage == 2 else 0.5 * s
-            src = k1 if stage == 0 else (k2 if stage == 1 else k3)
-            for i in range(ny):
-                ys[i] = y[i] + c * src[i]
-            state = ys
-            dst = k2 if stage == 0 else (k3 if stage == 1 else k4)
-        else:
-            for i in range(ny):
-                out[i] = y[i] + s / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-            # stuck and locked bodies keep their position exactly
-            for i in range(nb):
-                if modes[i] == LOCKED or modes[i] == STUCK:
-                    out[i] = y[i]
-                    out[nb + i] = 0.0
-            if not any_stuck:
-                break
-            # the forces at the end for the breakaway test (the rates land in ys, unused)
-            c = s
-            state = out
-            dst = ys
-        _deriv(tau + c, state, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dst)
+    for stage in range(3):
+        c = s if stage == 2 else 0.5 * s
+        src = k1 if stage == 0 else (k2 if stage == 1 else k3)
+        dst = k2 if stage == 0 else (k3 if stage == 1 else k4)
+        for i in range(ny):
+            ys[i] = y[i] + c * src[i]
+        _deriv(tau + c, ys, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dst)
+    for i in range(ny):
+        out[i] = y[i] + s / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+    # stuck and locked bodies keep their position exactly
+    for i in range(nb):
+        if modes[i] == LOCKED or modes[i] == STUCK:
+            out[i] = y[i]
+            out[nb + i] = 0.0
+    if any_stuck:
+        _forces(tau + s, out, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
     _validity(out, nb, modes, par, work, phi)
 
 
@@ -353,6 +347,20 @@ def _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, 
     _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
     if phi.shape[0] > 0:
         _validity(y, nb, modes, par, work, phi)
+
+
+@njit(cache=True, **_HOT_LOOP)
+def _next_node_kink(hist, scan, step, h, delay):
+    """Time of the kink of the next event node at grid step >= ``scan`` (and < ``step``).
+
+    Returns (time [s], the grid step to scan from next); nodes come in time order.
+    """
+    while scan < step:
+        f = hist[3, scan]
+        scan += 1
+        if f > EVENT:
+            return (scan - 1) * h + hist[0, int(f)] + delay, scan
+    return math.inf, scan
 
 
 @njit(cache=True, inline="always")
@@ -637,6 +645,8 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     # flags up to the current step finds them in turn.
     kink_next = par[fbr, 4] if delayed else math.inf
     kink_scan = 0
+    nodes_made = 0
+    kinks_found = 0
     while True:
         t = step * h
         if has_fb:
@@ -673,7 +683,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                             y[i] = ysave[i]
                             k1[i] = k1save[i]
                         m_pref = 1
-                        kink_scan = min(kink_scan, step)
+                        kink_scan = min(kink_scan, step)  # retaken steps may add nodes
                     else:
                         if m > 1 and has_fb:
                             _fill_history(hist, step0, m, h, ysave[fbb], ysave[nb + fbb],
@@ -721,14 +731,14 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             # the step ends at the next kink of the delayed feedback, if one comes first
             s_lim = remaining
             if delayed:
-                if kink_next <= tau + 1e-9 * h or kink_next == math.inf:
+                if kink_next <= tau + 1e-9 * h:
                     kink_next = math.inf
-                    while kink_scan < step:
-                        f = hist[3, kink_scan]
-                        kink_scan += 1
-                        if f > EVENT:
-                            kink_next = (kink_scan - 1) * h + hist[0, int(f)] + par[fbr, 4]
-                            break
+                if kink_next == math.inf and kinks_found < nodes_made:
+                    # a separate function: a loop here slowed every step by 40 % (codegen)
+                    kink_next, kink_scan = _next_node_kink(hist, kink_scan, step, h,
+                                                           par[fbr, 4])
+                    if kink_next < math.inf:
+                        kinks_found += 1
                 if tau + 1e-9 * h < kink_next < tau + remaining - 1e-9 * h:
                     s_lim = kink_next - tau
             # phases: the full step; an Illinois secant on the step length for each
@@ -836,6 +846,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
             if pending_node >= 0:
                 hist[0, pending_node + 1] = y[nb + fbb]  # velocity after (impacts change it)
                 hist[3, step] = pending_node
+                nodes_made += 1
             elif has_fb and hist[3, step] == 0.0:
                 hist[3, step] = EVENT  # the delayed feedback will have a kink here
             if n_ev > max_events:
