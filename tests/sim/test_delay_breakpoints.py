@@ -3,22 +3,10 @@ each event, and a step ends where an event's kink arrives one delay later."""
 
 import numpy as np
 
-from driveid.sim import BacklashLink, BodyParams, DriveParams, PDFeedback, ShaftLink, simulate_drive
+from driveid.sim import simulate_drive
 
-
-def _all_state_error(res, ref):
-    """Max over states of max|error| / max|reference state| (positions and velocities)."""
-    return max(np.max(np.abs(a - b)) / np.max(np.abs(b))
-               for a, b in zip([*res.x, *res.v], [*ref.x, *ref.v], strict=True))
-
-
-def _w3(delay=0.01):
-    bodies = (BodyParams(J=0.0115, c_mean=1e-3, fk_mean=0.02), BodyParams(J=0.0035),
-              BodyParams(J=0.016, c_mean=2e-3, fk_mean=0.05))
-    links = (BacklashLink(gap_plus=0.01, gap_minus=0.01, k=1e4, c=2.0),
-             ShaftLink(k=50.0, c=0.05))
-    return DriveParams(bodies=bodies, links=links,
-                       feedback=PDFeedback(P=5.0, D=0.3, delay=delay, reference=1.0))
+from .test_drive import _w3
+from .test_drive_strides import _all_state_error
 
 
 def test_rk4_keeps_its_order_with_a_delay():
@@ -40,7 +28,7 @@ def test_the_order_holds_for_a_delay_off_the_grid():
     # a delay that is no multiple of the step: the history's grid points and the kinks'
     # arrivals never coincide. Before: ratio 3.1 (10.37 ms) where 10 ms gave 52; now ~15
     for delay in (0.01, 0.01037):
-        drive = _w3(delay)
+        drive = _w3(delay=delay)
         ref = simulate_drive(drive, duration=1.0, max_step=1e-3 / 400)
         e20 = _all_state_error(simulate_drive(drive, duration=1.0, max_step=1e-3 / 20), ref)
         e40 = _all_state_error(simulate_drive(drive, duration=1.0, max_step=1e-3 / 40), ref)

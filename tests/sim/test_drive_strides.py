@@ -5,30 +5,20 @@ import pytest
 
 from driveid.errors import ParameterError
 from driveid.sim import (
-    BacklashLink,
     BodyParams,
     DriveParams,
-    PDFeedback,
     ShaftLink,
     simulate_drive,
     simulate_drive_batch,
 )
+
+from .test_drive import _w3  # motor, backlash, frictionless arm, shaft, tool; delayed PD
 
 
 def _all_state_error(res, ref):
     """Max over states of max|error| / max|reference state| (positions and velocities)."""
     return max(np.max(np.abs(a - b)) / np.max(np.abs(b))
                for a, b in zip([*res.x, *res.v], [*ref.x, *ref.v], strict=True))
-
-
-def _w3():
-    """Motor, backlash, arm (no friction), shaft, tool under a delayed PD: settles by 0.9 s."""
-    bodies = (BodyParams(J=0.0115, c_mean=1e-3, fk_mean=0.02), BodyParams(J=0.0035),
-              BodyParams(J=0.016, c_mean=2e-3, fk_mean=0.05))
-    links = (BacklashLink(gap_plus=0.01, gap_minus=0.01, k=1e4, c=2.0),
-             ShaftLink(k=50.0, c=0.05))
-    return DriveParams(bodies=bodies, links=links,
-                       feedback=PDFeedback(P=5.0, D=0.3, delay=0.01, reference=1.0))
 
 
 def test_strides_follow_rtol_on_the_closed_form():

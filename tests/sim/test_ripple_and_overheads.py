@@ -86,14 +86,11 @@ def test_energy_integrals_are_integrated_only_when_read(rtol):
     # simulate_drive runs the kernel on positions and velocities; reading result.energy runs
     # it again with the three energy integrals. They do not feed back, so the trajectory of
     # both runs must be the same to the bit (also with strides, whose estimate skips them).
-    from driveid.sim.drive import BacklashLink, PDFeedback, ShaftLink, _prepare, _run_kernel
+    from driveid.sim.drive import _prepare, _run_kernel
 
-    drive = DriveParams(
-        bodies=(BodyParams(J=0.0115, c_mean=1e-3, fk_mean=0.02), BodyParams(J=0.0035),
-                BodyParams(J=0.016, c_mean=2e-3, fk_mean=0.05)),
-        links=(BacklashLink(gap_plus=0.01, gap_minus=0.01, k=1e4, c=2.0),
-               ShaftLink(k=50.0, c=0.05)),
-        feedback=PDFeedback(P=5.0, D=0.3, delay=0.01, reference=1.0))
+    from .test_drive import _w3
+
+    drive = _w3()
     run = _prepare(drive, 2.0, 1000.0, None, None, None, None, 2.5e-5, 200, rtol)
     fast, full = _run_kernel(run, 200), _run_kernel(run, 200, energy=True)
     assert fast[3] is None and full[3].shape == (6, 2001)
