@@ -830,17 +830,15 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                 # offset, position, velocity and acceleration before the switch, then after
                 # (not within 1e-6 h of a grid point: a piece that short would extrapolate
                 # the reads that round-off puts on its wrong side)
-                c = n_grid + 2 * (step % ring)
-                _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b,
-                                     work, no_phi)
-                hist[0, c] = tau - t
-                hist[1, c] = y[fbb]
-                hist[2, c] = y[nb + fbb]
-                hist[3, c] = _acceleration(y, nb, fbb, modes, par, work)
-                pending_node = c
+                pending_node = n_grid + 2 * (step % ring)
+                hist[0, pending_node] = tau - t
+                hist[1, pending_node] = y[fbb]
+                hist[2, pending_node] = y[nb + fbb]
             for _r in range(3):
                 _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b,
                                      work, no_phi)
+                if _r == 0 and pending_node >= 0:  # the acceleration before the switch
+                    hist[3, pending_node] = _acceleration(y, nb, fbb, modes, par, work)
                 _resolve(y, nb, modes, par, work, counts, jump)
             n_ev += 1
             if pending_node >= 0:
