@@ -67,7 +67,7 @@ def _pho(rng, fs):
 def _sine(rng, fs):
     truth = _plant(rng, True)
     f0 = math.sqrt(truth["K"] / truth["J"]) / (2 * math.pi)
-    sig = exc.sine(frequency=f0 * float(rng.uniform(0.5, 1.5)), duration=10.0, fs=fs,
+    sig = exc.sine(frequency=f0 * float(rng.uniform(0.5, 1.5)), duration=30.0, fs=fs,
                    amplitude=5 * truth["fk_mean"] + 0.5)
     return _forced(rng, truth, np.asarray(sig.u), fs), truth
 
