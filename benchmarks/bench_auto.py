@@ -33,7 +33,7 @@ def main(per_shape: int = 30) -> None:
             confusion[shape][classify_record(rec).shape] += 1
             seconds.append(time.perf_counter() - t0)
     cols = shapes + ["none"]
-    print(f"{'true \\ got':<11}" + "".join(f"{c[:9]:>10}" for c in cols))
+    print(f"{'true/got':<11}" + "".join(f"{c[:9]:>10}" for c in cols))
     for shape in shapes:
         print(f"{shape:<11}" + "".join(f"{confusion[shape][c]:>10}" for c in cols))
     right = sum(confusion[s][s] for s in shapes)
