@@ -159,3 +159,11 @@ def test_a_scaled_record_is_rescued_by_the_named_fix(run, tmp_path):
     fixed = run("identify", "logdec", path, "--method", "peaks", "--scale", "x=1e300",
                 "--json")
     fixed.assert_ok()
+
+
+@pytest.mark.parametrize("command", [("identify", "logdec"), ("pho", "analyse")])
+def test_an_absurd_bootstrap_count_is_refused_before_any_fit(run, tmp_path, command):
+    """``--bootstrap 1e8`` once started 1e8 whole-record fits without a word."""
+    path = _write(tmp_path / "decay.csv", u=np.zeros_like(_T))
+    out = run(*command, path, "--bootstrap", "100000000")
+    out.assert_clean_error("--bootstrap")
