@@ -402,8 +402,13 @@ def _start_client(scheduler: str | None, n_workers: int, owned: list[Any]) -> An
         return client
     if n_workers < 1:
         raise ConfigError(f"n_workers must be >= 1; got {n_workers}")
-    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                           host="127.0.0.1", dashboard_address="127.0.0.1:0")
+    import dask
+
+    # the workers' statistical profiler samples the task thread's stack every 10 ms and takes
+    # the GIL from the fit each time; our own cluster runs without it (issue 28)
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address="127.0.0.1:0")
     owned.append(cluster)
     client = Client(cluster)
     owned.append(client)
