@@ -337,3 +337,14 @@ def test_the_exact_closed_form_takes_no_steps():
     one = dataclasses.replace(one, bodies=(dataclasses.replace(one.bodies[0], K=16.0),))
     assert estimate_drive_cost(one, duration=1e3, fs=1e3).n_steps == 0
     assert estimate_drive_cost(one, duration=1e3, fs=1e3, method="rk4").n_steps > 0
+
+
+def test_a_long_feasible_run_is_announced_with_its_estimate(tmp_path, monkeypatch):
+    monkeypatch.setattr("driveid.commands.drive._ANNOUNCE_SECONDS", 0.0)  # announce any run
+    out = tmp_path / "o.csv"
+    result = CliRunner().invoke(drive_command, ["--preset", "testbed-a", "--duration", "0.2",
+                                                "--max-steps", "1e12", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    announce = [line for line in result.stderr.splitlines() if line.startswith("simulating")]
+    assert len(announce) == 1 and "RK4 steps" in announce[0] and "201 samples" in announce[0]
+    assert out.exists()
