@@ -167,3 +167,13 @@ def test_an_absurd_bootstrap_count_is_refused_before_any_fit(run, tmp_path, comm
     path = _write(tmp_path / "decay.csv", u=np.zeros_like(_T))
     out = run(*command, path, "--bootstrap", "100000000")
     out.assert_clean_error("--bootstrap")
+
+
+@pytest.mark.parametrize("scale", [1e-99, 1e-60, 1e-20, 1e20, 1e60, 1e99],
+                         ids=lambda s: f"{s:g}")
+@pytest.mark.parametrize("command", ["friction-map", "idim", "hilbert", "step", "logdec"])
+def test_odd_magnitudes_inside_the_band_fit_or_fail_cleanly(run, tmp_path, command, scale):
+    """Inside [1e-100, 1e100] nothing is refused at reading; no estimator may then crash
+    (friction-map once ended in exit 70 below speeds of about 1e-15)."""
+    path = _write(tmp_path / "scaled.csv", x=_X * scale, u=_U * scale)
+    run("identify", command, path).assert_ok_or_clean_error()
