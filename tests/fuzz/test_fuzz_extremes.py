@@ -177,3 +177,12 @@ def test_odd_magnitudes_inside_the_band_fit_or_fail_cleanly(run, tmp_path, comma
     (friction-map once ended in exit 70 below speeds of about 1e-15)."""
     path = _write(tmp_path / "scaled.csv", x=_X * scale, u=_U * scale)
     run("identify", command, path).assert_ok_or_clean_error()
+
+
+@pytest.mark.parametrize("url", ["sqlite://", "sqlite:///", "sqlite:///:memory:"])
+@pytest.mark.parametrize("verb", ["catalog add", "fleet identify"])
+def test_an_in_memory_catalogue_is_refused(run, tmp_path, result_json, url, verb):
+    """``--catalog sqlite:///`` once printed 'added as entry 1' and kept nothing."""
+    args = ([result_json, "--machine", "m", "--axis", "a"] if verb == "catalog add"
+            else [str(tmp_path / "*.csv"), "--mass", "1", "--quiet"])
+    run(*verb.split(), *args, "--catalog", url).assert_clean_error("names no file")

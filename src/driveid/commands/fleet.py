@@ -9,7 +9,7 @@ import click
 from driveid.commands import clean_errors
 from driveid.commands._checks import BoundedInt
 from driveid.commands._record_options import record_options
-from driveid.commands.catalog import catalog_option
+from driveid.commands.catalog import catalog_option, check_catalog_names_a_file
 from driveid.errors import ConfigError
 
 __all__ = ["fleet_group"]
@@ -61,6 +61,7 @@ def fleet_identify_command(patterns, method, mass, stiffness, path_pattern, mach
     except ImportError as exc:
         raise ConfigError(f"fleet runs need the fleet extra ({exc.name} is missing); "
                           "pip install 'driveid[fleet]'") from None
+    check_catalog_names_a_file(catalog)
     options = {k: v for k, v in (("mass", mass), ("stiffness", stiffness)) if v is not None}
     summary = identify_many(list(patterns), method=method, method_options=options,
                             record_options=record_opts, catalog=catalog, scheduler=scheduler,
