@@ -7,8 +7,11 @@ prints
 
 * detection rate of faulty axes, false-alarm rate on healthy axis-months (target <= 1 %),
   median delay from fault onset to detection [months];
-* throughput [records/s] serial in this process (the baseline), on 1 and 2 Dask workers,
-  the ratios, and what 100 000 axes per 8-hour shift needs.
+* throughput [records/s] serial in this process (the baseline), on 1 Dask worker with one
+  record per task (the per-task overhead) and batched, and on 2 batched workers (``--workers
+  1 2 4 ...`` on a machine with more cores): records/s, efficiency against workers x the
+  in-process rate, processor time per record and overhead per task (issue 28), and what
+  100 000 axes per 8-hour shift needs.
 
 Run: ``MPLBACKEND=Agg .venv/bin/python benchmarks/bench_fleet.py [--axes 200] [--months 12]``.
 """
@@ -16,7 +19,6 @@ Run: ``MPLBACKEND=Agg .venv/bin/python benchmarks/bench_fleet.py [--axes 200] [-
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import statistics
 import tempfile
@@ -29,45 +31,50 @@ from driveid.health import assess_axis, make_blueprint
 from driveid.sim.fleet import read_fleet_truth, simulate_fleet
 
 
-def _throughput(files, n_workers, folder):
+def _throughput(files, n_workers, folder, batch_size=None):
+    name = f"throughput-{n_workers}-{batch_size}.sqlite"
     for suffix in ("", "-wal", "-shm"):  # a fresh catalogue: nothing may be skipped
-        (folder / f"throughput-{n_workers}.sqlite{suffix}").unlink(missing_ok=True)
-    summary = identify_many([str(f) for f in files], method_options={"mass": 1.0},
-                            catalog=folder / f"throughput-{n_workers}.sqlite",
-                            n_workers=n_workers, progress=False)
-    return summary.records_per_second, summary.cpu_seconds_per_record
+        (folder / f"{name}{suffix}").unlink(missing_ok=True)
+    return identify_many([str(f) for f in files], method_options={"mass": 1.0},
+                         catalog=folder / name, n_workers=n_workers, progress=False,
+                         batch_size=batch_size)
 
 
-def _throughput_study(files, n_records, folder):
-    # throughput: serial baseline in this process, then 1 and 2 Dask workers, same records
+def _throughput_study(files, n_records, folder, workers=(1, 2)):
+    """In-process baseline, then Dask workers (one record per task, and batched).
+
+    Efficiency = records/s / (workers x in-process records/s); the per-task overhead is the
+    wall time each task costs beyond the in-process time of its records, x workers.
+    """
     sample = files[: n_records]
     identify_file(sample[0], method_options={"mass": 1.0})  # import and compile first
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for f in sample:
         identify_file(f, method_options={"mass": 1.0})
-    serial = len(sample) / (time.perf_counter() - t0)
+    serial_wall = (time.perf_counter() - t0) / len(sample)
+    serial_cpu = (time.process_time() - c0) / len(sample)
+    serial = 1.0 / serial_wall
     try:
         load = os.getloadavg()[0]
     except OSError:
         load = float("nan")
     print(f"load average {load:.1f} on {os.cpu_count()} cores (throughput shares them)")
-    t0 = time.process_time()
-    for f in sample:
-        identify_file(f, method_options={"mass": 1.0})
-    serial_cpu = (time.process_time() - t0) / len(sample)
-    one, cpu_one = _throughput(sample, 1, folder)
-    two, cpu_two = _throughput(sample, 2, folder)
-    print(f"processor time per record: serial {serial_cpu * 1e3:.0f} ms, in Dask tasks "
-          f"{cpu_one * 1e3:.0f} ms (1 worker), {cpu_two * 1e3:.0f} ms (2 workers)")
-    print(f"throughput on {len(sample)} records: serial {serial:.1f} records/s; Dask 1 worker "
-          f"{one:.1f} ({one / serial:.2f}× serial); 2 workers {two:.1f} ({two / one:.2f}× one "
-          "worker)")
+    print(f"{'run':34s} {'tasks':>5s} {'records/s':>9s} {'efficiency':>10s} "
+          f"{'CPU ms/rec':>10s} {'overhead ms/task':>16s}")
+    print(f"{'in-process (baseline)':34s} {'-':>5s} {serial:9.2f} {'1.00':>10s} "
+          f"{serial_cpu * 1e3:10.0f} {'-':>16s}")
+    rows = [(1, 1)] + [(w, None) for w in workers]
+    for n_workers, batch in rows:
+        summary = _throughput(sample, n_workers, folder, batch)
+        rate = summary.records_per_second
+        overhead = (summary.elapsed * n_workers - len(sample) * serial_wall) / summary.n_tasks
+        label = f"Dask {n_workers} worker(s), " + ("1 record/task" if batch == 1 else "batched")
+        print(f"{label:34s} {summary.n_tasks:5d} {rate:9.2f} "
+              f"{rate / (n_workers * serial):10.2f} "
+              f"{summary.cpu_seconds_per_record * 1e3:10.0f} {overhead * 1e3:16.1f}")
     need = 100_000 / (8 * 3600)
-    for label, cost in (("processor time", cpu_one), ("wall time on this loaded machine",
-                                                         1.0 / one)):
-        print(f"100 000 axes per 8-h shift = {need:.2f} records/s; at {cost * 1e3:.0f} ms per "
-              f"record ({label}) that is {need * cost:.2f} busy cores -> "
-              f"{max(1, math.ceil(2 * need * cost))} worker(s) with 2x headroom")
+    print(f"100 000 axes per 8-h shift = {need:.2f} records/s; at {serial_cpu * 1e3:.0f} ms "
+          f"of processor time per record that is {need * serial_cpu:.2f} busy cores")
 
 
 def main() -> None:
@@ -83,6 +90,8 @@ def main() -> None:
                         help="Reuse the fleet and catalogue already under --out.")
     parser.add_argument("--skip-throughput", action="store_true")
     parser.add_argument("--skip-detection", action="store_true")
+    parser.add_argument("--workers", type=int, nargs="+", default=[1, 2],
+                        help="Dask worker counts of the batched throughput rows.")
     args = parser.parse_args()
     folder = args.out or Path(tempfile.mkdtemp(prefix="driveid-fleet-"))
     t0 = time.perf_counter()
@@ -97,7 +106,7 @@ def main() -> None:
     files = sorted((folder / "plant").glob("*/*/20*.csv"))
 
     if not args.skip_throughput:
-        _throughput_study(files, args.throughput_records, folder)
+        _throughput_study(files, args.throughput_records, folder, tuple(args.workers))
     if args.skip_detection:
         return
     # the whole fleet on 2 workers into one catalogue

@@ -34,7 +34,7 @@ from driveid.catalog import Catalog, file_sha256, parse_time
 from driveid.errors import ConfigError
 
 __all__ = ["DEFAULT_PATH_PATTERN", "METHODS", "FleetSummary", "identify_many", "parse_path",
-           "identify_file"]
+           "identify_file", "identify_files"]
 
 #: How machine, axis and time are read from a record's path (its last components).
 DEFAULT_PATH_PATTERN = "{machine}/{axis}/{time}"
@@ -63,6 +63,8 @@ class FleetSummary:
         Workers of the cluster.
     cpu_seconds : float
         Processor time of all tasks [s]: the per-record cost, independent of machine load.
+    n_tasks : int
+        Dask tasks submitted (records go in batches, see ``identify_many(batch_size=)``).
     """
 
     n_found: int
@@ -73,6 +75,7 @@ class FleetSummary:
     elapsed: float
     n_workers: int
     cpu_seconds: float = 0.0
+    n_tasks: int = 0
 
     @property
     def records_per_second(self) -> float:
@@ -159,7 +162,8 @@ def _group(name: str) -> str:
 
 def identify_file(path: str | Path, *, method: str = "logdec",
                   method_options: Mapping[str, Any] | None = None,
-                  record_options: Mapping[str, Any] | None = None) -> dict[str, Any]:
+                  record_options: Mapping[str, Any] | None = None,
+                  sha256: str | None = None) -> dict[str, Any]:
     """Identify one record file; never raise for a bad file (the fleet task).
 
     Parameters
@@ -172,6 +176,9 @@ def identify_file(path: str | Path, *, method: str = "logdec",
         Keywords of the estimator (e.g. ``{"mass": 1.0}``).
     record_options : mapping, optional
         Keywords of :func:`driveid.io.read_record`.
+    sha256 : str, optional
+        The file's SHA-256 when the caller has it already (the fleet client hashes every
+        file to skip catalogued ones): the task does not read the file twice.
 
     Returns
     -------
@@ -187,7 +194,7 @@ def identify_file(path: str | Path, *, method: str = "logdec",
     inputs = [{"path": str(path), "sha256": None}]
     cpu_start = time.process_time()
     try:
-        inputs[0]["sha256"] = file_sha256(path)
+        inputs[0]["sha256"] = sha256 or file_sha256(path)
         estimator = _estimator(method)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -214,6 +221,36 @@ def identify_file(path: str | Path, *, method: str = "logdec",
               "diagnostics": dict(est.diagnostics), "warnings": messages}
     return {"status": "ok", "result": to_jsonable(result),
             "cpu_seconds": time.process_time() - cpu_start}
+
+
+def identify_files(paths: Sequence[str | Path], *, method: str = "logdec",
+                   method_options: Mapping[str, Any] | None = None,
+                   record_options: Mapping[str, Any] | None = None,
+                   sha256: Sequence[str | None] | None = None) -> list[dict[str, Any]]:
+    """Identify several record files in one task (a fleet batch); never raise for a bad file.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        The records.
+    method : {"logdec", "output-error"}
+        Estimator.
+    method_options : mapping, optional
+        Keywords of the estimator (e.g. ``{"mass": 1.0}``).
+    record_options : mapping, optional
+        Keywords of :func:`driveid.io.read_record`.
+    sha256 : sequence of str, optional
+        The files' SHA-256, one per path, when known.
+
+    Returns
+    -------
+    list of dict
+        One :func:`identify_file` outcome per path, in order.
+    """
+    hashes = list(sha256) if sha256 is not None else [None] * len(paths)
+    return [identify_file(path, method=method, method_options=method_options,
+                          record_options=record_options, sha256=sha)
+            for path, sha in zip(paths, hashes, strict=True)]
 
 
 def _estimator(method: str):
@@ -253,7 +290,8 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "lo
                   catalog: str | Path | Catalog | None = None, client: Any = None,
                   scheduler: str | None = None, n_workers: int = 2,
                   path_pattern: str = DEFAULT_PATH_PATTERN, machine_type: str | None = None,
-                  retries: int = 2, progress: bool = True) -> FleetSummary:
+                  retries: int = 2, progress: bool = True,
+                  batch_size: int | None = None) -> FleetSummary:
     """Identify every record of a fleet on Dask and catalogue the results.
 
     Parameters
@@ -283,6 +321,11 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "lo
         Re-runs of a task that raised (workers lost are re-run by the scheduler).
     progress : bool
         Show a progress bar on stderr.
+    batch_size : int, optional
+        Records per Dask task [-]: each task costs the scheduler and the worker a few
+        milliseconds whatever its size, so records travel in batches. Default: about four
+        batches per worker, at most 16 records each (a lost or slow batch delays no more
+        than that).
 
     Returns
     -------
@@ -292,8 +335,8 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "lo
     Raises
     ------
     ConfigError
-        No file found, an unknown method or estimator keyword, or a path that does not
-        match the pattern.
+        No file found, an unknown method or estimator keyword, a path that does not
+        match the pattern, or a ``batch_size`` below 1.
     FileNotFoundError
         A named file (not a pattern) that does not exist.
     """
@@ -301,6 +344,9 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "lo
     if not files:
         raise ConfigError(f"no record file matches {paths!r}; check the pattern (quote it "
                           "in the shell so that ** reaches driveid)")
+    if batch_size is not None and not (isinstance(batch_size, int) and batch_size >= 1):
+        raise ConfigError(f"batch_size must be a whole number of records >= 1 (CLI: "
+                          f"--batch-size); got {batch_size!r}")
     estimator = _estimator(method)
     options = dict(method_options or {})
     try:
@@ -322,16 +368,19 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "lo
             if hashes[f] not in known and hashes[f] not in todo:
                 todo[hashes[f]] = f
         n_skipped = len(files) - len(todo)
-        counts: dict[str, Any] = {"ok": 0, "failed": 0, "duplicates": 0, "cpu": 0.0}
+        counts: dict[str, Any] = {"ok": 0, "failed": 0, "duplicates": 0, "cpu": 0.0,
+                                  "tasks": 0}
         workers, elapsed = 0, 0.0
         if todo:
             if client is None:
                 client = _start_client(scheduler, n_workers, owned)
             workers = len(client.scheduler_info().get("workers", {}))
             client.run(_estimator, method)  # import (and compile) before the clock starts
+            size = batch_size or max(1, min(_MAX_AUTO_BATCH,
+                                            len(todo) // (_BATCHES_PER_WORKER * max(workers, 1))))
             start = time.perf_counter()
             counts = _run(client, todo, located, cat, method, options, record_kwargs,
-                          machine_type, retries, progress)
+                          machine_type, retries, progress, size)
             elapsed = time.perf_counter() - start
     finally:
         for thing in reversed(owned):
@@ -340,7 +389,8 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "lo
             cat.close()
     return FleetSummary(n_found=len(files), n_skipped=n_skipped, n_ok=counts["ok"],
                         n_failed=counts["failed"], n_duplicates=counts["duplicates"],
-                        elapsed=elapsed, n_workers=workers, cpu_seconds=counts["cpu"])
+                        elapsed=elapsed, n_workers=workers, cpu_seconds=counts["cpu"],
+                        n_tasks=counts["tasks"])
 
 
 def _start_client(scheduler: str | None, n_workers: int, owned: list[Any]) -> Any:
@@ -352,65 +402,126 @@ def _start_client(scheduler: str | None, n_workers: int, owned: list[Any]) -> An
         return client
     if n_workers < 1:
         raise ConfigError(f"n_workers must be >= 1; got {n_workers}")
-    cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                           host="127.0.0.1", dashboard_address="127.0.0.1:0")
+    import dask
+
+    # the workers' statistical profiler samples the task thread's stack every 10 ms and takes
+    # the GIL from the fit each time; our own cluster runs without it (issue 28)
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address="127.0.0.1:0")
     owned.append(cluster)
     client = Client(cluster)
     owned.append(client)
     return client
 
 
+#: Automatic batches: about this many per worker (the tail of the run stays balanced) ...
+_BATCHES_PER_WORKER = 4
+#: ... of at most this many records (a batch lost with its worker is re-run whole).
+_MAX_AUTO_BATCH = 16
+
+
+class _CatalogWriter:
+    """Write outcomes to the catalogue from a thread, in transactions of many records.
+
+    The client thread only queues what arrives, so collecting results never waits for a
+    commit (issue 28: the writes were on the critical path of every batch).
+    """
+
+    def __init__(self, cat: Catalog, counts: dict[str, Any]) -> None:
+        import queue
+        import threading
+
+        self.cat, self.counts = cat, counts
+        self.queue: queue.Queue = queue.Queue()
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._loop, name="driveid-catalog-writer",
+                                       daemon=True)
+        self.thread.start()
+
+    def put(self, item: dict[str, Any]) -> None:
+        if self.error is not None:
+            raise self.error
+        self.queue.put(item)
+
+    def _loop(self) -> None:
+        import queue
+
+        done = False
+        while not done:
+            batch = [self.queue.get()]
+            # gather what else is waiting (up to 0.2 s): one transaction per batch
+            deadline = time.monotonic() + 0.2
+            while len(batch) < 200:
+                try:
+                    batch.append(self.queue.get(timeout=max(0.0, deadline - time.monotonic())))
+                except queue.Empty:
+                    break
+            if batch[-1] is None:
+                batch.pop()
+                done = True
+            try:
+                if batch and self.error is None:
+                    for added in self.cat.add_many(batch):
+                        self.counts["duplicates"] += 0 if added.created else 1
+            except BaseException as exc:  # noqa: BLE001 — re-raised in the client thread
+                self.error = exc
+
+    def close(self) -> None:
+        self.queue.put(None)
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+
+
 def _run(client, todo, located, cat, method, options, record_kwargs, machine_type, retries,
-         progress) -> dict[str, int]:
+         progress, batch_size) -> dict[str, Any]:
+    import hashlib
+
     from distributed import as_completed
     from tqdm import tqdm
 
-    futures = {}
-    for sha, path in todo.items():
-        future = client.submit(identify_file, str(path), method=method, method_options=options,
-                               record_options=record_kwargs, key=f"driveid-identify-{sha}",
-                               retries=retries, pure=False)
-        futures[future] = path
     import driveid
 
-    counts: dict[str, Any] = {"ok": 0, "failed": 0, "duplicates": 0, "cpu": 0.0}
-    pending: list[dict[str, Any]] = []
-    last_flush = time.monotonic()
-
-    def flush() -> None:
-        nonlocal last_flush
-        if pending:
-            for added in cat.add_many(pending):
-                counts["duplicates"] += 0 if added.created else 1
-            pending.clear()
-        last_flush = time.monotonic()
-
-    with tqdm(total=len(futures), disable=not progress, unit="record") as bar:
-        for future in as_completed(list(futures)):
-            path = futures.pop(future)
-            where = located[path]
-            try:
-                outcome = future.result()
-            except Exception as exc:  # noqa: BLE001 — a task lost for good (KilledWorker ...)
-                outcome = {"status": "failed", "method": method,
-                           "inputs": [{"path": str(path), "sha256": file_sha256(path)}],
-                           "error": f"{type(exc).__name__}: {exc}"}
-            future.release()
-            place = {"machine": where["machine"], "axis": where["axis"],
-                     "measured_at": where["measured_at"],
-                     "machine_type": where["machine_type"] or machine_type}
-            if outcome["status"] == "ok":
-                pending.append({"result": outcome["result"], **place})
-            else:
-                pending.append({"failure": {
-                    "inputs": outcome["inputs"], "method": outcome["method"],
-                    "error": outcome["error"], "driveid_version": driveid.__version__,
-                    "command": ["driveid.fleet.identify_many", method], **place}})
-            counts[outcome["status"]] += 1
-            counts["cpu"] += outcome.get("cpu_seconds", 0.0)
-            # one transaction per batch: a commit per record would cost as much as a fit
-            if len(pending) >= 50 or time.monotonic() - last_flush > 2.0:
-                flush()
-            bar.update(1)
-    flush()
+    futures = {}
+    items = list(todo.items())
+    for i in range(0, len(items), batch_size):
+        chunk = items[i:i + batch_size]
+        key = hashlib.sha256("".join(sha for sha, _ in chunk).encode()).hexdigest()[:32]
+        future = client.submit(identify_files, [str(path) for _, path in chunk], method=method,
+                               method_options=options, record_options=record_kwargs,
+                               sha256=[sha for sha, _ in chunk],
+                               key=f"driveid-identify-{key}", retries=retries, pure=False)
+        futures[future] = chunk
+    counts: dict[str, Any] = {"ok": 0, "failed": 0, "duplicates": 0, "cpu": 0.0,
+                              "tasks": len(futures)}
+    writer = _CatalogWriter(cat, counts)
+    try:
+        with tqdm(total=len(items), disable=not progress, unit="record") as bar:
+            for future in as_completed(list(futures)):
+                chunk = futures.pop(future)
+                try:
+                    outcomes = future.result()
+                except Exception as exc:  # noqa: BLE001 — a batch lost for good (KilledWorker)
+                    outcomes = [{"status": "failed", "method": method,
+                                 "inputs": [{"path": str(path), "sha256": sha}],
+                                 "error": f"{type(exc).__name__}: {exc}"} for sha, path in chunk]
+                future.release()
+                for (_, path), outcome in zip(chunk, outcomes, strict=True):
+                    where = located[path]
+                    place = {"machine": where["machine"], "axis": where["axis"],
+                             "measured_at": where["measured_at"],
+                             "machine_type": where["machine_type"] or machine_type}
+                    if outcome["status"] == "ok":
+                        writer.put({"result": outcome["result"], **place})
+                    else:
+                        writer.put({"failure": {
+                            "inputs": outcome["inputs"], "method": outcome["method"],
+                            "error": outcome["error"], "driveid_version": driveid.__version__,
+                            "command": ["driveid.fleet.identify_many", method], **place}})
+                    counts[outcome["status"]] += 1
+                    counts["cpu"] += outcome.get("cpu_seconds", 0.0)
+                bar.update(len(chunk))
+    finally:
+        writer.close()
     return counts

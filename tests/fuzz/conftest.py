@@ -3,6 +3,9 @@
 Outcome classes (issue 12): ``ok`` (exit 0) or ``clean error`` (exit 2, exactly one stderr
 line starting ``error:``, no traceback). Everything else fails the case: a traceback, exit 1
 or 70, several error lines, a file written or changed outside the case's own folder.
+
+The rule that no input reaches an internal error (issue 28) is checked on every run: an
+:class:`Outcome` with exit 70 fails its test at once, whatever the test goes on to assert.
 """
 
 from __future__ import annotations
@@ -14,7 +17,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from driveid.cli import cli
+from driveid.cli import EXIT_INTERNAL, cli
 
 
 def snapshot(folder: Path) -> dict[str, tuple]:
@@ -38,6 +41,8 @@ class Outcome:
         self.stdout = result.stdout
         self.stderr = result.stderr
         self.lines = [line for line in self.stderr.splitlines() if line.strip()]
+        # exit 70 is "internal error, this is a bug": no fuzz input may ever reach it
+        assert self.code != EXIT_INTERNAL, "internal error (exit 70): " + self.describe()
 
     def describe(self) -> str:
         exc = self.result.exception

@@ -1,6 +1,8 @@
 """TOML drive configs: round trip against the presets, every error path, the CLI command."""
 
+import dataclasses
 import math
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -8,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from driveid.commands.drive import drive_command
-from driveid.errors import ConfigError
+from driveid.errors import ConfigError, ParameterError
 from driveid.io import read_record
 from driveid.sim.config import (
     RunOptions,
@@ -16,7 +18,7 @@ from driveid.sim.config import (
     parse_drive_config,
     simulate_config,
 )
-from driveid.sim.drive import BacklashLink, ShaftLink
+from driveid.sim.drive import BacklashLink, ShaftLink, estimate_drive_cost
 from driveid.sim.presets import preset
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "drive_configs" / "testbed_a.toml"
@@ -263,3 +265,86 @@ def test_cli_reports_an_abort(tmp_path):
     assert result.exit_code == 0 and "aborted: |command| = 10 N·m" in result.output
     assert "0 samples" in result.output
     assert len(out.read_text(encoding="utf-8").splitlines()) == 3  # header only
+
+
+# -- cost known before work (issue 28) ------------------------------------------------------
+
+STIFF_TOML = """
+[[body]]
+J = 1e-6
+[[body]]
+J = 1e-6
+[[link]]
+type = "backlash"
+gap_plus = 1e-3
+gap_minus = 1e-3
+k = 1e15
+[run]
+duration = 2
+x0 = [1.0, 0.0]
+"""
+
+
+def test_cost_of_a_stiff_contact_from_its_period():
+    """Steps from the contact's own period, computed here independently of the estimator."""
+    params, run = parse_drive_config(tomllib.loads(STIFF_TOML))
+    cost = estimate_drive_cost(params, duration=run.duration, fs=run.fs)
+    omega = math.sqrt(1e15 * (1 + 1e-6 / 1e-6) / 1e-6)  # relative mode, reduced inertia
+    n_sub = math.ceil(1e-3 / (0.2 / omega))  # RK4 step 0.2/ω inside each 1 ms sample
+    assert cost.n_steps == 2000 * n_sub
+    assert cost.period == pytest.approx(2 * math.pi / omega, rel=1e-12)
+    assert cost.n_samples == 2001
+    assert "link 1 (backlash contact k = 1e+15" in cost.stiffest
+
+
+def test_a_stiff_contact_is_refused_at_once_naming_the_cause(tmp_path):
+    config = _write(tmp_path, STIFF_TOML, "stiff.toml")
+    result = CliRunner().invoke(drive_command, [str(config), "--out", str(tmp_path / "o.csv")])
+    assert result.exit_code == 2, result.output
+    line = result.output.strip()
+    assert line.startswith("error: ") and "\n" not in line
+    for words in ("RK4 steps", "backlash contact k = 1e+15", "period 1.4e-10 s",
+                  "--max-steps", "lower k"):
+        assert words in line, line
+    assert not (tmp_path / "o.csv").exists()
+
+
+def test_a_huge_rate_is_refused_before_allocating(tmp_path, monkeypatch):
+    # a machine with 16 GiB free, whatever this one has (2e9 samples need ~300 GiB)
+    monkeypatch.setattr("driveid.io.consistency.available_memory", lambda: 16 << 30)
+    config = _write(tmp_path, 'preset = "testbed-a"\n[run]\nduration = 2\nfs = 1e9\n',
+                    "fast.toml")
+    result = CliRunner().invoke(drive_command, [str(config), "--out", str(tmp_path / "o.csv")])
+    assert result.exit_code == 2, result.output
+    assert "2e+09 samples" in result.output and "memory available" in result.output
+    assert "--duration" in result.output
+
+
+def test_max_steps_budget_refuses_and_none_lifts_it():
+    params = preset("testbed-a")
+    cost = estimate_drive_cost(params, duration=0.5, fs=1000.0)
+    assert 0 < cost.n_steps < 10**6
+    with pytest.raises(ParameterError, match="over the budget of 10 steps"):
+        simulate_config(params, RunOptions(duration=0.5, x0=(1.0,) * params.n_bodies),
+                        max_steps=10)
+    with pytest.raises(ParameterError, match="max_steps must be a positive int"):
+        simulate_config(params, RunOptions(duration=0.5), max_steps=0)
+
+
+def test_the_exact_closed_form_takes_no_steps():
+    params = preset("testbed-a")
+    one = dataclasses.replace(params, bodies=params.bodies[:1], links=(), feedback=None)
+    one = dataclasses.replace(one, bodies=(dataclasses.replace(one.bodies[0], K=16.0),))
+    assert estimate_drive_cost(one, duration=1e3, fs=1e3).n_steps == 0
+    assert estimate_drive_cost(one, duration=1e3, fs=1e3, method="rk4").n_steps > 0
+
+
+def test_a_long_feasible_run_is_announced_with_its_estimate(tmp_path, monkeypatch):
+    monkeypatch.setattr("driveid.commands.drive._ANNOUNCE_SECONDS", 0.0)  # announce any run
+    out = tmp_path / "o.csv"
+    result = CliRunner().invoke(drive_command, ["--preset", "testbed-a", "--duration", "0.2",
+                                                "--max-steps", "1e12", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    announce = [line for line in result.stderr.splitlines() if line.startswith("simulating")]
+    assert len(announce) == 1 and "RK4 steps" in announce[0] and "201 samples" in announce[0]
+    assert out.exists()

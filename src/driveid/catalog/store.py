@@ -295,6 +295,8 @@ class Catalog:
                 raise ConfigError(
                     f"no catalogue at {path}; check the path, or add an entry first "
                     "(driveid catalog add) to create it")
+        if self.url.startswith("sqlite:///"):
+            _check_sqlite_file(Path(self.url[len("sqlite:///"):]))
         kwargs: dict[str, Any] = {"future": True}
         if self.url.startswith("sqlite"):
             # several processes may write (fleet runs): wait for the lock, don't fail
@@ -308,9 +310,16 @@ class Catalog:
         try:
             self.schema_version = self._migrate()
         except sa.exc.OperationalError as exc:
+            self.engine.dispose()
             raise ConfigError(
                 f"cannot open catalogue {self.url}: {exc.orig}; check the path or URL, "
                 "the server and the credentials") from None
+        except sa.exc.DatabaseError as exc:  # an existing file that is no database (issue 28)
+            self.engine.dispose()
+            raise ConfigError(
+                f"cannot open catalogue {self.url}: {exc.orig}; that file is not a driveid "
+                "catalogue (a SQLite database): name another file (--catalog NEW.sqlite) "
+                "or move this one away") from None
 
     def __enter__(self) -> Catalog:
         return self
@@ -342,9 +351,11 @@ class Catalog:
         with self.engine.begin() as conn:
             inspector = sa.inspect(conn)
             if not inspector.has_table("schema_version"):
-                if inspector.has_table("entries"):
+                if inspector.has_table("entries") or (
+                        self.url.startswith("sqlite") and inspector.get_table_names()):
+                    # another application's SQLite file: never add our tables to it
                     raise ConfigError(
-                        f"{self.url} has an 'entries' table but no schema_version: not a "
+                        f"{self.url} holds tables but no schema_version table: not a "
                         "driveid catalogue; name another file or database")
                 S.schema_version.create(conn)
                 conn.execute(S.schema_version.insert().values(version=0))
@@ -731,6 +742,39 @@ def _none_to_nan(value: Any) -> float:
 def _nan_to_none(value: float) -> float | None:
     value = float(value)
     return value if math.isfinite(value) else None
+
+
+_SQLITE_HEADER = b"SQLite format 3\x00"
+
+
+def _check_sqlite_file(path: Path) -> None:
+    """Refuse an existing file that is no driveid catalogue before any driver touches it.
+
+    Opening with the engine would already change such a file: its connect hook switches
+    the journal to WAL (a persistent change) and adds ``-wal``/``-shm`` files (issue 28).
+    """
+    import sqlite3
+
+    if not path.is_file() or path.stat().st_size == 0:
+        return  # a new catalogue (SQLite makes an empty file a database)
+    fix = "name another file (--catalog NEW.sqlite) or move this one away"
+    with path.open("rb") as fh:
+        head = fh.read(len(_SQLITE_HEADER))
+    if head != _SQLITE_HEADER:
+        raise ConfigError(f"cannot open catalogue {path}: the file is not a SQLite database "
+                          f"(it lacks the SQLite header); {fix}")
+    try:
+        con = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            tables = {row[0] for row in con.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table'")}
+        finally:
+            con.close()
+    except sqlite3.DatabaseError as exc:
+        raise ConfigError(f"cannot open catalogue {path}: {exc}; {fix}") from None
+    if tables and "schema_version" not in tables:
+        raise ConfigError(f"{path} holds tables of another application but no "
+                          f"schema_version table: not a driveid catalogue; {fix}")
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:

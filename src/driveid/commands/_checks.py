@@ -29,6 +29,9 @@ __all__ = ["FiniteFloat", "PositiveFloat", "NonNegativeFloat", "BoundedInt",
 #: SI units, yet small enough that squares and products of two options stay finite.
 FLOAT_LIMIT = 1e100
 
+#: Most bootstrap replicates a command takes (``--bootstrap``) [-].
+MAX_BOOTSTRAP = 10_000
+
 
 class FiniteFloat(click.ParamType):
     """A finite float, optionally bounded: NaN, inf and magnitudes above ``max`` refused.
@@ -218,7 +221,10 @@ def bootstrap_options(default_replicates: int) -> Any:
     def decorate(command: Any) -> Any:
         command = click.option("--seed", type=int, default=None,
                                help="Seed of the bootstrap (oe).")(command)
-        command = click.option("--bootstrap", type=int, default=default_replicates,
+        # each replicate is one more whole-record fit: 1e8 once ran on silently (issue 28)
+        limit = BoundedInt(MAX_BOOTSTRAP, min=1, override="each replicate is one more fit; "
+                           "a few hundred give error bars good to a few per cent")
+        command = click.option("--bootstrap", type=limit, default=default_replicates,
                                show_default=True,
                                help="Bootstrap repeats for quantised records (oe).")(command)
         return click.option("--quantisation", default="auto", show_default=True,

@@ -74,7 +74,9 @@ class RecordOptions:
         path, window = split_window_spec(spec)
         if window == (None, None):
             window = self.window
-        return read_record(path, **self.read_kwargs(window))
+        record = read_record(path, **self.read_kwargs(window))
+        _check_magnitudes(record, path)
+        return record
 
     def read_all(self, specs: Sequence[str | Path]) -> list[Any]:
         """Read several files, each with its own window.
@@ -132,6 +134,36 @@ class RecordOptions:
         if self.counts_per_metre is not None:
             kwargs["counts_per_metre"] = self.counts_per_metre
         return kwargs
+
+
+#: Magnitudes outside [1e-100, 1e100] (as for numeric options) make squares and products of
+#: samples overflow or underflow in the estimators: ×1e300 and ×1e-310 once ended in exit 70.
+_MAGNITUDE_LIMIT = 1e100
+_COLUMN_WORDS = {"t": "time", "x": "position", "v": "velocity", "u": "force"}
+
+
+def _check_magnitudes(record: Any, path: Path) -> None:
+    """Refuse a column whose largest magnitude is out of the range the estimators compute in."""
+    import numpy as np
+
+    from driveid.errors import RecordError
+
+    for col, word in _COLUMN_WORDS.items():
+        values = getattr(record, col, None)
+        if values is None:
+            continue
+        peak = float(np.max(np.abs(values), initial=0.0))
+        if peak == 0.0 or (1.0 / _MAGNITUDE_LIMIT <= peak <= _MAGNITUDE_LIMIT):
+            continue
+        size = "above" if peak > _MAGNITUDE_LIMIT else "below"
+        bound = _MAGNITUDE_LIMIT if peak > _MAGNITUDE_LIMIT else 1.0 / _MAGNITUDE_LIMIT
+        exponent = min(max(-math.floor(math.log10(peak)), -300), 300)  # a finite factor
+        raise RecordError(
+            f"{path.name}: the {word} column reaches {peak:.3g} (SI units), {size} the "
+            f"{bound:.0e} that driveid computes with (squares of samples would "
+            f"{'overflow' if size == 'above' else 'underflow'}); check the column's unit "
+            f"(--unit {col}=UNIT) or rescale it (--scale {col}=F), e.g. "
+            f"--scale {col}=1e{exponent}")
 
 
 def split_window_spec(spec: str | Path) -> tuple[Path, tuple[float | None, float | None]]:

@@ -10,7 +10,7 @@ import click
 from driveid.commands import clean_errors
 from driveid.errors import ConfigError, FileFormatError
 
-__all__ = ["catalog_group", "catalog_option", "open_catalog"]
+__all__ = ["catalog_group", "catalog_option", "open_catalog", "check_catalog_names_a_file"]
 
 _CATALOG_HELP = ("Catalogue: a SQLite file, sqlite:///FILE or postgresql://user@host/db "
                  "[default: ./driveid-catalog.sqlite in the working directory].")
@@ -29,7 +29,28 @@ def open_catalog(catalog, *, create=True):
     except ImportError as exc:
         raise ConfigError(f"the catalogue needs the fleet extra ({exc.name} is missing); "
                           "pip install 'driveid[fleet]'") from None
+    check_catalog_names_a_file(catalog)
     return Catalog(catalog, create=create)
+
+
+def check_catalog_names_a_file(catalog) -> None:
+    """Refuse ``--catalog sqlite://`` and the like: an in-memory catalogue ends with the command.
+
+    Parameters
+    ----------
+    catalog : str, Path or None
+        The ``--catalog`` value (None: the default file).
+
+    Raises
+    ------
+    ConfigError
+        If it names a SQLite database without a file ('added as entry 1', nothing kept).
+    """
+    text = "" if catalog is None else str(catalog).strip()
+    if text.startswith("sqlite") and text.split("://", 1)[-1].strip("/") in ("", ":memory:"):
+        raise ConfigError(f"--catalog {text!r} names no file (SQLite would keep the catalogue "
+                          "in memory and lose it when the command ends); name a file, e.g. "
+                          "--catalog plant.sqlite or sqlite:///plant.sqlite")
 
 
 @click.group("catalog")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 import click
@@ -11,13 +12,22 @@ import numpy as np
 
 from driveid._json import to_jsonable
 from driveid.commands import clean_errors
+from driveid.commands._checks import PositiveFloat
 from driveid.errors import ConfigError
 from driveid.io import ensure_writable
 from driveid.sim.config import RunOptions, load_drive_config, simulate_config
-from driveid.sim.drive import DriveResult
+from driveid.sim.drive import (
+    DEFAULT_MAX_STEPS,
+    DriveResult,
+    check_drive_cost,
+    estimate_drive_cost,
+)
 from driveid.sim.presets import PRESETS, preset, preset_units
 
 __all__ = ["drive_command", "write_drive_csv"]
+
+#: A run estimated longer than this [s] is announced (steps, step, samples, time) first.
+_ANNOUNCE_SECONDS = 10.0
 
 _UNITS = {"rad": ("rad", "rad/s", "N·m"), "m": ("m", "m/s", "N")}
 
@@ -92,11 +102,15 @@ def write_drive_csv(result: DriveResult, path: str | Path, *, units: str = "rad"
               help="Duration [s]; overrides the [run] table.")
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="CSV file to write: t, x1, v1, x2, v2 ..., command.")
+@click.option("--max-steps", type=PositiveFloat(max=1e18), default=float(DEFAULT_MAX_STEPS),
+              show_default=True,
+              help="Budget of RK4 steps: a longer run (a stiff contact or shaft needs a short "
+                   "step) is refused before it starts.")
 @click.option("--overwrite", is_flag=True, help="Overwrite an existing output file.")
 @click.option("--force", "force_alias", is_flag=True, hidden=True,
               help="Old name of --overwrite.")
 @clean_errors
-def drive_command(config, preset_name, duration, out, overwrite, force_alias):
+def drive_command(config, preset_name, duration, max_steps, out, overwrite, force_alias):
     """Simulate the lumped drive described by CONFIG (TOML) or --preset; write a CSV record."""
     if (config is None) == (preset_name is None):
         raise click.UsageError("give either a CONFIG.toml file or --preset NAME (not both)")
@@ -115,7 +129,17 @@ def drive_command(config, preset_name, duration, out, overwrite, force_alias):
             raise ConfigError(f"--duration: {exc}") from None
     force = overwrite or force_alias
     ensure_writable(_csv_path(out), overwrite=force)  # fail before a long simulation
-    result = simulate_config(params, options)
+    max_steps = math.ceil(max_steps)
+    cost = estimate_drive_cost(params, duration=options.duration, fs=options.fs,
+                               method=options.method)
+    check_drive_cost(cost, duration=options.duration, max_steps=max_steps)
+    if cost.seconds > _ANNOUNCE_SECONDS:  # long but feasible: say so before the silence
+        why = (f"the step resolves {cost.stiffest}" if cost.step < 0.999 / options.fs
+               else "one step per output sample")
+        click.echo(f"simulating {cost.n_steps:.3g} RK4 steps of {cost.step:.2g} s "
+                   f"({cost.n_samples:.3g} samples; {why}): about "
+                   f"{cost.seconds:.3g} s on one core", err=True)
+    result = simulate_config(params, options, max_steps=max_steps)
     meta = {"source": "driveid simulate drive", "config": source,
             "run": dataclasses.asdict(options)}
     path = write_drive_csv(result, out, units=options.units, overwrite=True, meta=meta)

@@ -7,8 +7,9 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import BoundedInt
 from driveid.commands._record_options import record_options
-from driveid.commands.catalog import catalog_option
+from driveid.commands.catalog import catalog_option, check_catalog_names_a_file
 from driveid.errors import ConfigError
 
 __all__ = ["fleet_group"]
@@ -37,15 +38,19 @@ def fleet_group():
               help="Worker processes of the local Dask cluster.")
 @click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
               help="Use an existing Dask scheduler instead of a local cluster.")
+@click.option("--batch-size", type=BoundedInt(10_000, min=1), default=None,
+              help="Records per Dask task (default: about 4 batches per worker, at most 16 "
+                   "records each).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @catalog_option
 @record_options
 @clean_errors
 def fleet_identify_command(patterns, method, mass, stiffness, path_pattern, machine_type,
-                           workers, scheduler, quiet, catalog, record_opts):
+                           workers, scheduler, batch_size, quiet, catalog, record_opts):
     """Identify every record matching PATTERNS ('traces/**/*.csv') into the catalogue.
 
-    One Dask task per record, read inside the task. A bad file becomes a catalogued failure
+    Dask tasks of a batch of records each, read inside the task; the catalogue is written
+    from a thread as results arrive. A bad file becomes a catalogued failure
     with its error; records already catalogued (same SHA-256) are skipped, so an
     interrupted run resumes where it stopped.
     """
@@ -56,11 +61,13 @@ def fleet_identify_command(patterns, method, mass, stiffness, path_pattern, mach
     except ImportError as exc:
         raise ConfigError(f"fleet runs need the fleet extra ({exc.name} is missing); "
                           "pip install 'driveid[fleet]'") from None
+    check_catalog_names_a_file(catalog)
     options = {k: v for k, v in (("mass", mass), ("stiffness", stiffness)) if v is not None}
     summary = identify_many(list(patterns), method=method, method_options=options,
                             record_options=record_opts, catalog=catalog, scheduler=scheduler,
                             n_workers=workers, path_pattern=path_pattern,
-                            machine_type=machine_type, progress=not quiet)
+                            machine_type=machine_type, progress=not quiet,
+                            batch_size=batch_size)
     click.echo(f"{summary.n_found} records: {summary.n_ok} identified, {summary.n_failed} "
                f"failed, {summary.n_skipped} already catalogued; "
                f"{summary.records_per_second:.3g} records/s on {summary.n_workers} workers")

@@ -461,6 +461,11 @@ def _fit_nonlinear(func: Callable[..., np.ndarray], names: tuple[str, ...], s: n
     x0 = [start[n] for n in names]
     lo = [lower[n] for n in names]
     hi = [upper[n] for n in names]
+    if s.max() < 1e-12:  # the start must lie 1e-12 inside bounds that scale with the speed
+        raise IdentificationError(  # (issue 28: speeds of 1e-20 ended in scipy's error, exit 70)
+            "the speeds of the friction map are too small for the Stribeck fit; check the "
+            "position's unit (--unit x=UNIT) or rescale it (--scale x=F); got at most "
+            f"{float(s.max()):.3g} m/s or rad/s")
     x0 = np.clip(x0, np.array(lo) + 1e-12, np.array(hi) - 1e-12)
     i_fs = names.index("Fs")
     i_fc = names.index("Fc") if has_fc else None

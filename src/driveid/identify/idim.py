@@ -358,6 +358,13 @@ def estimate_idim(
     (True, True)
     """
     recs = _as_records(records)
+    if load is None and not offset and all(r.u is not None and not np.any(r.u) for r in recs):
+        # nothing to fit: θ = 0 explains a zero force exactly (issue 28: was a division by 0)
+        raise IdentificationError(
+            "IDIM fits the applied force, and the force of every record is all zero (a free "
+            "decay or an unpowered run?); give the column holding the drive's force or "
+            "torque (--force COLUMN), or fit a free decay with identify logdec; got "
+            "max |u| = 0")
     if offset is not None and not math.isfinite(float(offset)):
         raise ParameterError(f"offset must be a finite force [N or N·m] or None; got {offset}")
     loads = _loads(load, recs)

@@ -211,11 +211,20 @@ def _numeric(parts: list[str], decimal: str) -> bool:
     return True
 
 
-def _header_fields(line: str, sep: str | None) -> list[str]:
-    """Split a header line, honouring quotes (``"Position, mm"`` is one field)."""
+def _header_fields(line: str, sep: str | None, name: str = "") -> list[str]:
+    """Split a header line, honouring quotes (``"Position, mm"`` is one field).
+
+    ``name`` (the file's) starts the message of the error a too-long field raises.
+    """
     if sep is None:
         return _fields(line, sep)
-    parts = [f.strip() for f in next(csv.reader([line], delimiter=sep))]
+    try:
+        parts = [f.strip() for f in next(csv.reader([line], delimiter=sep))]
+    except csv.Error:  # a field over csv.field_size_limit() (a 1 MB column name, issue 28)
+        raise FileFormatError(
+            f"{name}: a header line holds a field longer than the csv field limit of "
+            f"{csv.field_size_limit()} characters; column names are short words such as "
+            "'x [mm]': fix or delete that line") from None
     while parts and not parts[-1]:
         parts.pop()
     return parts
@@ -330,9 +339,9 @@ def _read_text(path: Path) -> Table:
         text = line.lstrip()
         if _is_comment(text):
             text = text.lstrip("#%/ ")
-            if text.startswith("meta:") or len(_header_fields(text, sep)) != width:
+            if text.startswith("meta:") or len(_header_fields(text, sep, path.name)) != width:
                 continue
-        parts = _header_fields(text, sep)
+        parts = _header_fields(text, sep, path.name)
         if sep is None and len(parts) != width:
             parts = [p for p in re.split(r"\t|\s{2,}", text.strip()) if p]
         if len(parts) > width:

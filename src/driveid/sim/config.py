@@ -47,6 +47,7 @@ from pathlib import Path
 
 from driveid.errors import ConfigError, ParameterError
 from driveid.sim.drive import (
+    DEFAULT_MAX_STEPS,
     BacklashLink,
     BodyParams,
     DriveParams,
@@ -350,7 +351,8 @@ def load_drive_config(path: str | Path) -> tuple[DriveParams, RunOptions]:
     return parse_drive_config(document, source=path.name)
 
 
-def simulate_config(params: DriveParams, options: RunOptions) -> DriveResult:
+def simulate_config(params: DriveParams, options: RunOptions, *,
+                    max_steps: int | None = DEFAULT_MAX_STEPS) -> DriveResult:
     """Run :func:`~driveid.sim.drive.simulate_drive` with the options of a config.
 
     Parameters
@@ -359,11 +361,20 @@ def simulate_config(params: DriveParams, options: RunOptions) -> DriveResult:
         The drive.
     options : RunOptions
         Duration, rate, initial state, torques and method.
+    max_steps : int or None
+        Budget of RK4 grid steps [-] (default 1e9); a run that needs more, or more memory
+        than is available, is refused before it starts (``None``: no step budget).
 
     Returns
     -------
     DriveResult
         The simulated response.
+
+    Raises
+    ------
+    ParameterError
+        If the run would need more memory than is available or more steps than
+        ``max_steps``.
 
     Examples
     --------
@@ -373,4 +384,5 @@ def simulate_config(params: DriveParams, options: RunOptions) -> DriveResult:
     (1, 501)
     """
     return simulate_drive(params, duration=options.duration, fs=options.fs, x0=options.x0,
-                          v0=options.v0, torque=options.torque, method=options.method)
+                          v0=options.v0, torque=options.torque, method=options.method,
+                          max_steps=max_steps)
