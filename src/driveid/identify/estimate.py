@@ -421,8 +421,9 @@ def inputs_of(records: Sequence[Any]) -> list[dict[str, Any]]:
     -------
     list of dict
         One ``{"path", "sha256", "rows", "columns", "window", "units", "units_in_file"}``
-        per record; ``columns`` maps record column -> file column, ``window`` is the time
-        span used [s], ``units`` the SI units after conversion.
+        per record (and ``reading``, the reading options that differ from the defaults);
+        ``columns`` maps record column -> file column, ``window`` is the time span used
+        [s], ``units`` the SI units after conversion.
     """
     out = []
     for record in records:
@@ -437,6 +438,8 @@ def inputs_of(records: Sequence[Any]) -> list[dict[str, Any]]:
             "units": {c: record.units[c] for c in record.columns if c in record.units},
             "units_in_file": dict(meta.get("units_in_file") or {}),
         })
+        if meta.get("reading"):  # the reading options, so validate/report read it alike
+            out[-1]["reading"] = dict(meta["reading"])
     return out
 
 

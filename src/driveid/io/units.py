@@ -239,11 +239,15 @@ def split_header(text: str) -> tuple[str, str | None]:
     (('v', 'm/s'), ('x', 'deg'), ('speed', 'rpm'))
     >>> split_header("Position, mm"), split_header("theta_m")
     (('Position', 'mm'), ('theta_m', None))
+    >>> split_header("pos (3)"), split_header("q[2]")
+    (('pos (3)', None), ('q[2]', None))
     """
     field = text.strip().strip('"').strip("'").strip()
     for pattern in (_BRACKET, _PAREN, _SLASH, _IN):
         match = pattern.match(field)
         if match and match.group("unit").strip():
+            if pattern in (_BRACKET, _PAREN) and not _could_be_unit(match.group("unit")):
+                return field, None  # 'pos (3)', 'q[2]', 'Force (channel 1)': part of the name
             return match.group("name").strip(), normalise_unit(match.group("unit"))
     # only with a unit driveid knows; never "name_unit": theta_m, tau_m are subscripts
     for pattern in (_GLUED_SLASH, _COMMA):
@@ -251,6 +255,21 @@ def split_header(text: str) -> tuple[str, str | None]:
         if match and _is_known(normalise_unit(match.group("unit"))):
             return match.group("name"), normalise_unit(match.group("unit"))
     return field, None
+
+
+def _could_be_unit(text: str) -> bool:
+    """Tell a unit in brackets from an index or label that belongs to the name.
+
+    Known units always are; a bare number (``pos (3)``, a servo or joint number), text with
+    spaces (``Force (channel 1)``) or without a letter never is. Other single words
+    (``x [furlong]``) are taken as units so that an unknown unit is reported, not dropped.
+    """
+    text = text.strip()
+    if _is_known(normalise_unit(text)):
+        return True
+    if re.fullmatch(r"[+-]?\d+", text) or not re.search(r"[^\W\d_]|[°%\"']", text):
+        return False
+    return not re.search(r"\s", text) and len(text) <= 12
 
 
 def known_unit(unit: str) -> bool:
