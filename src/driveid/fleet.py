@@ -157,7 +157,7 @@ def _group(name: str) -> str:
     return f"(?P<{name}>[^/]+?)"
 
 
-def identify_file(path: str | Path, *, method: str = "logdec",
+def identify_file(path: str | Path, *, method: str = "output-error",
                   method_options: Mapping[str, Any] | None = None,
                   record_options: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Identify one record file; never raise for a bad file (the fleet task).
@@ -166,8 +166,9 @@ def identify_file(path: str | Path, *, method: str = "logdec",
     ----------
     path : str or Path
         The record.
-    method : {"logdec", "output-error"}
-        Estimator.
+    method : {"output-error", "logdec"}
+        Estimator: the whole-record output-error fit (default, as ``identify logdec``) or
+        the peak log decrement.
     method_options : mapping, optional
         Keywords of the estimator (e.g. ``{"mass": 1.0}``).
     record_options : mapping, optional
@@ -200,8 +201,10 @@ def identify_file(path: str | Path, *, method: str = "logdec",
                 "error": f"{type(exc).__name__}: {exc}",
                 "cpu_seconds": time.process_time() - cpu_start}
     messages = list(est.warnings) + [str(w.message) for w in caught]
-    params = {n: {"value": p.value, "stderr": p.stderr, "unit": p.unit,
-                  "fixed": bool(getattr(p, "fixed", False))} for n, p in est.params.items()}
+    # a given parameter has no standard error: null, as in the result schema (issue 26)
+    params = {n: {"value": p.value, "stderr": None if getattr(p, "fixed", False) else p.stderr,
+                  "unit": p.unit, "fixed": bool(getattr(p, "fixed", False))}
+              for n, p in est.params.items()}
     cov = None
     if est.covariance is not None:
         cov = {"names": list(est.covariance["names"]),
@@ -247,7 +250,7 @@ def _expand(paths: str | Path | Iterable[str | Path]) -> list[Path]:
     return list(dict.fromkeys(found))
 
 
-def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "logdec",
+def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "output-error",
                   method_options: Mapping[str, Any] | None = None,
                   record_options: Mapping[str, Any] | Any | None = None,
                   catalog: str | Path | Catalog | None = None, client: Any = None,
@@ -260,8 +263,9 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "lo
     ----------
     paths : str or Path or sequence
         Record files or glob patterns (``'traces/**/*.csv'``, recursive).
-    method : {"logdec", "output-error"}
-        Estimator; ``output-error`` needs :mod:`driveid.identify.output_error`.
+    method : {"output-error", "logdec"}
+        Estimator: the whole-record output-error fit (default, the one ``identify logdec``
+        runs; near the Cramér-Rao bound) or the peak log decrement (``logdec``).
     method_options : mapping, optional
         Estimator keywords, e.g. ``{"mass": 1.0}`` [kg or kg·m²]; checked before submitting.
     record_options : mapping or RecordOptions, optional

@@ -328,9 +328,13 @@ def parse_scale(text: str | float, scalars: Mapping[str, float] | None = None) -
             value = float(_evaluate(tree.body, scalars))
         except (SyntaxError, ValueError, ZeroDivisionError, KeyError, TypeError) as exc:
             names = f"; scalar variables of the file: {sorted(scalars)}" if scalars else ""
+            why = "division by zero" if isinstance(exc, ZeroDivisionError) else (
+                "a syntax error" if isinstance(exc, SyntaxError) else
+                "a name that is no scalar variable of the file or an operation other than "
+                "+ - * /")
             raise FileFormatError(
                 f"scale {text!r} is not a number or an expression of numbers with + - * / "
-                f"and parentheses, e.g. 0.02/60{names} ({exc})") from None
+                f"and parentheses, e.g. 0.02/60{names}; it has {why}") from None
     if not (math.isfinite(value) and value != 0.0):
         raise FileFormatError(f"a scale must be finite and non-zero; got {text!r}")
     return value
@@ -480,6 +484,9 @@ def convert_table(
     """
     name = Path(source).name if source else "the data"
     chosen, notes, problems = _choose(table, columns)
+    unresolved = {c for c in COLUMN_ALIASES if any(
+        f"the {_WORDS[c]} ({OPTION_OF_COLUMN[c]})" in p or f"could be the {_WORDS[c]}:" in p
+        for p in problems)}  # already reported: no second 'not found' for them
     explicit_time = columns is not None and columns.get("t") not in (None, "")
     if fs is not None:
         if explicit_time:
@@ -490,7 +497,7 @@ def convert_table(
         chosen.pop("t", None)
     ignored = {c for c, spec in dict(columns or {}).items()
                if str(spec).strip().lower() == "none"}
-    if require and not any(c in chosen for c in require) and not any(
+    if require and not any(c in chosen or c in unresolved for c in require) and not any(
             c in dict(columns or {}) and c not in ignored for c in require):
         words = " or ".join(_WORDS[c] for c in require)
         problems.append(
@@ -509,7 +516,7 @@ def convert_table(
             raise FileFormatError(
                 f"{option} names unknown record column(s) {sorted(unknown)}; use t, x, v or u")
     rate = fs if fs is not None else table.fs
-    if "t" not in chosen and rate is None:
+    if "t" not in chosen and "t" not in unresolved and rate is None:
         problems.append(
             "no time column found by name (t, time, Zeit, ...); choose it with --time COL, "
             "or give the sample rate with --fs HZ (Python: columns={'t': COL} or fs=HZ)")
