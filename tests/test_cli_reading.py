@@ -5,6 +5,7 @@ documented options and must give the estimate of the equivalent clean CSV.
 """
 
 import ast
+import math
 import importlib
 import json
 import re
@@ -220,3 +221,53 @@ def test_estimators_resample_a_non_uniform_record_with_a_warning():
         # K/J = 16: ω0 = 4 rad/s; linear resampling at 250 samples per period costs < 1e-4
         assert est.value("omega0") == pytest.approx(4.0, rel=1e-3)
     assert np.ptp(np.diff(t)) > 1e-5  # the record really was non-uniform
+
+
+def test_validate_and_report_reuse_the_reading_options_of_the_result(tmp_path):
+    """Issue 26: 'validate RESULT.json FILE' reads FILE as the identification read it."""
+    from driveid.commands.report import report_command
+    from driveid.commands.validate import validate_command
+    from tests.fixtures.formats import write_robot_log
+
+    path = write_robot_log(tmp_path)
+    res = CliRunner().invoke(logdec_command, [str(path), "--position", "q2", "--mass", "1",
+                                              "--json"])
+    out = _json(res)
+    assert out["inputs"][0]["reading"] == {"columns": {"x": "q2"}}
+    assert "note: robot_log.txt: read column 'dq2' as the velocity" in res.stderr
+    result = tmp_path / "result.json"
+    result.write_text(res.stdout)
+    # without --position the robot log is ambiguous (q1, q2): the stored choice is reused
+    res = CliRunner().invoke(validate_command, [str(result), str(path), "--json"])
+    assert res.exit_code == 0, res.output
+    assert "read with the options stored in result.json: --position q2" in res.stderr
+    fit = json.loads(res.stdout)["fit"]
+    assert fit > 0.99  # the model of joint 2 on joint 2's decay (noise-free): near-perfect
+    # options given on the command line win over the stored ones
+    res = CliRunner().invoke(validate_command, [str(result), str(path), "--position", "q1"])
+    assert "options stored" not in res.stderr
+    # the report shows how each input was read, as the options that read it again
+    html = tmp_path / "r.html"
+    res = CliRunner().invoke(report_command, [str(result), "-o", str(html)])
+    assert res.exit_code == 0, res.output
+    assert "read with --position q2" in html.read_text(encoding="utf-8")
+
+
+def test_fleet_default_is_the_identify_logdec_estimator_and_given_stderr_is_null(tmp_path):
+    from driveid.catalog import Catalog
+    from driveid.fleet import identify_file
+
+    path = write_clean_csv(tmp_path)
+    out = identify_file(path, method_options={"mass": 1.0})
+    assert out["status"] == "ok" and out["result"]["method"] == "output-error"
+    assert out["result"]["parameters"]["J"]["stderr"] is None
+    peaks = identify_file(path, method="logdec", method_options={"mass": 1.0})
+    assert peaks["result"]["parameters"]["J"]["stderr"] is None  # the estimator says 0.0
+    with Catalog(tmp_path / "c.sqlite") as cat:
+        result = dict(peaks["result"])
+        result["parameters"] = {**result["parameters"],
+                                "J": {**result["parameters"]["J"], "stderr": 0.0}}
+        cat.add_result(result, machine="m", axis="x")
+        (entry,) = cat.entries()
+        # stored null (NaN when read back), as the result schema says for a given value
+        assert entry.parameters["J"].fixed and math.isnan(entry.parameters["J"].stderr)
