@@ -5,9 +5,9 @@ documented options and must give the estimate of the equivalent clean CSV.
 """
 
 import ast
-import math
 import importlib
 import json
+import math
 import re
 from pathlib import Path
 

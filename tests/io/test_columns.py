@@ -5,13 +5,6 @@ import re
 
 import numpy as np
 import pytest
-
-from driveid.errors import FileFormatError, RecordWarning
-from driveid.io import read_record
-from driveid.io.columns import parse_column_name
-from driveid.io.reading import decode_sign_magnitude
-from driveid.io.tables import read_table
-from driveid.io.units import split_header
 from tests.fixtures.formats import (
     SIGN_MAGNITUDE_COUNTS,
     decay,
@@ -22,6 +15,13 @@ from tests.fixtures.formats import (
     write_tracker,
     write_unitless,
 )
+
+from driveid.errors import FileFormatError, RecordWarning
+from driveid.io import read_record
+from driveid.io.columns import parse_column_name
+from driveid.io.reading import decode_sign_magnitude
+from driveid.io.tables import read_table
+from driveid.io.units import split_header
 
 
 def _notes(rec):
