@@ -265,7 +265,7 @@ def cli_text(message: str) -> str:
         inner = match.group(1).strip()
         flag = re.match(r"--[\w-]+", inner)
         before = text[:match.start()]
-        return "" if flag and flag.group(0) in before else f" ({inner})"
+        return "" if flag and flag.group(0) in before else match.group(0)
 
     return _CLI_ASIDE.sub(aside, text)
 

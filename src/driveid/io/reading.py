@@ -117,6 +117,12 @@ def read_record(
         Encoder counts per revolution [1/rev], for positions in ``counts``.
     counts_per_metre : float, optional
         Encoder counts per metre [1/m], for positions in ``counts``.
+    sign_magnitude : mapping, optional
+        Record column -> register width [bits] of a column stored as sign-magnitude
+        integers (``{"x": 16}``); such a column read without it is flagged by a warning.
+    position : bool
+        False accepts a file without a position column when it has a velocity (the
+        position is then the integrated velocity, ``meta["derived"]``).
     record_type : type
         :class:`driveid.io.Record` (passed in, so that this module stays below
         ``record.py`` in the import order; :func:`driveid.io.read_record` passes it).
@@ -529,10 +535,11 @@ def convert_table(
     from driveid.io.consistency import check_meta_units
 
     file_meta = {k: v for k, v in table.meta.items() if k not in _PROVENANCE}
-    meta_units = dict(file_meta.pop("units", {}) or {})
+    meta_units = file_meta.pop("units", {}) or {}
     # a header saying 't [ms]' under a meta line saying 's' is an error, never a silent pick
     check_meta_units({col: table.units[fname] for col, fname in chosen.items()
                       if fname and table.units.get(fname)}, meta_units, name)
+    meta_units = dict(meta_units)
     in_file: dict[str, str] = {}
     si: dict[str, str] = {}
     applied_scale: dict[str, float] = {}
