@@ -271,3 +271,27 @@ def test_fleet_default_is_the_identify_logdec_estimator_and_given_stderr_is_null
         (entry,) = cat.entries()
         # stored null (NaN when read back), as the result schema says for a given value
         assert entry.parameters["J"].fixed and math.isnan(entry.parameters["J"].stderr)
+
+
+def test_a_speed_only_log_is_read_by_a_command_that_needs_no_position(tmp_path):
+    """Issue 26: `identify step` uses the velocity; a drive log without position will do."""
+    import numpy as np
+    from scipy import signal
+
+    from driveid.commands.static import step_command
+
+    zeta, w0 = 0.2, 20.0
+    t = np.arange(8000) / 1000.0
+    cmd = np.where((t % 2.0) < 1.0, 1.0, 0.0) + 0.5
+    _, y, _ = signal.lsim(signal.lti([w0**2], [1, 2 * zeta * w0, w0**2]), cmd, t)
+    path = tmp_path / "speed_log.csv"
+    path.write_text("time [s],speed [rpm],torque_cmd [N·m]\n" + "\n".join(
+        f"{a:.4f},{b * 30 / math.pi:.10g},{c}" for a, b, c in zip(t, y, cmd, strict=True)))
+    res = CliRunner().invoke(step_command, [str(path), "--t-start", "1.0", "--json"])
+    assert res.exit_code == 0, res.output
+    # as the test of the command on a full record: the damping within 5 %
+    assert json.loads(res.stdout)["parameters"]["zeta"]["value"] == pytest.approx(zeta,
+                                                                                  rel=0.05)
+    assert "no position column: the position is the velocity integrated" in res.stderr
+    res = CliRunner().invoke(logdec_command, [str(path), "--mass", "1"])
+    assert res.exit_code == 2 and "no position column" in res.stderr  # this one needs it
