@@ -49,8 +49,9 @@ def test_python_spellings_in_the_sources_become_cli_options():
         texts = list(_hint_texts(__import__("ast").parse(path.read_text(encoding="utf-8"))))
         for text in texts:
             for match in re.finditer(r"(?<![\w\-.])([a-z][a-z0-9_]*)=(True|False|None)\b|"
-                                     r"(?<![\w\-.])([a-z][a-z0-9]*_[a-z0-9_]+) must", text):
-                name = match.group(1) or match.group(3)
+                                     r"(?<![\w\-.])([a-z][a-z0-9]*_[a-z0-9_]+) must|"
+                                     r"\b(?:pass|try|give|use|set) ([a-z][a-z0-9_]*)=", text):
+                name = match.group(1) or match.group(3) or match.group(4)
                 for command in commands:
                     if name not in _long_options(command):
                         continue
@@ -61,7 +62,7 @@ def test_python_spellings_in_the_sources_become_cli_options():
                     assert not re.search(rf"(?<![\w\-]){name}(=|\s+must)", shown), (
                         path.name, shown)
                     checked += 1
-    assert checked >= 3  # max_jitter=None, drift=True, cutoff_hz must ... at least
+    assert checked >= 5  # max_jitter=None, drift=True, cutoff_hz must, pass delay= ...
 
 
 def test_cli_text_translates_and_drops_reprs():

@@ -195,7 +195,10 @@ _REPR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool)\w*\(\s*([^()]*?)\s*\)
                    r"\bnp\.str_\(\s*([^()]*?)\s*\)")
 _ASSIGN = re.compile(r"(?<![\w.\-])([a-z][a-z0-9_]*)=(None|True|False|[^\s,;)]+)?")
 _PYTHON_ASIDE = re.compile(r"\s*\((?:Python|API)\s*:[^()]*(?:\([^()]*\)[^()]*)*\)")
-_IDENTIFIER = re.compile(r"(?<![\w.\-])([a-z][a-z0-9]*_[a-z0-9_]*[a-z0-9])(?![\w(=\-])")
+# a keyword as the subject of a rule ('cutoff_hz must be below fs/2'); other words with an
+# underscore (parameter names such as fk_mean in a warning) stay as they are
+_IDENTIFIER = re.compile(r"(?<![\w.\-])([a-z][a-z0-9]*_[a-z0-9_]*[a-z0-9])"
+                         r"(?=\s+(?:must|should|needs|takes|cannot|is not|has to)\b)")
 
 
 def _options_of_command() -> dict[str, str]:

@@ -344,6 +344,8 @@ def _read_text(path: Path) -> Table:
         if sep is None and len(parts) != width:
             parts = [p for p in re.split(r"\t|\s{2,}", text.strip()) if p]
         label, parts = _row_label(parts, width)
+        if label == "other":
+            continue  # 'Description', 'Data type' ... lines of an instrument header block
         if label == "unit" and unit_row is None:
             unit_row = parts + [""] * (width - len(parts))
             used.add(index)
@@ -420,19 +422,26 @@ def _read_text(path: Path) -> Table:
 _NAME_LABELS = ("channel name", "channel names", "channel", "channels", "name", "names",
                 "kanal", "kanalname", "signal", "signal name", "variable", "quantity")
 _UNIT_LABELS = ("unit", "units", "unit string", "einheit", "einheiten", "dimension")
+_OTHER_LABELS = ("description", "comment", "comments", "data type", "datatype", "type",
+                 "channel type", "display type", "group name", "group", "beschreibung",
+                 "kommentar", "minimum", "maximum", "min", "max", "wf_increment",
+                 "wf_start_offset", "wf_samples", "sample rate", "samples", "x dimension",
+                 "delta x", "x0", "t0", "dt", "date", "time stamp", "start time", "offset")
 
 
 def _row_label(parts: list[str], width: int) -> tuple[str | None, list[str]]:
     """Split a leading ``Channel name`` / ``Unit`` label off a header line.
 
-    Returns ``("name" | "unit" | None, fields)``: with a label and one field more than the
-    data rows, the label is dropped; with as many fields, the label's column gets no name
-    (or no unit) from this line.
+    Returns ``("name" | "unit" | "other" | None, fields)``: with a label and one field more
+    than the data rows, the label is dropped; with as many fields, the label's column gets
+    no name (or no unit) from this line. ``"other"``: another labelled line of the header
+    block (``Description``, ``Data type``), skipped.
     """
     if not parts or len(parts) not in (width, width + 1):
         return None, parts
     first = parts[0].strip().rstrip(":").strip().lower()
-    kind = "name" if first in _NAME_LABELS else "unit" if first in _UNIT_LABELS else None
+    kind = "name" if first in _NAME_LABELS else "unit" if first in _UNIT_LABELS else (
+        "other" if first in _OTHER_LABELS and len(parts) == width + 1 else None)
     if kind is None:
         return None, parts
     rest = parts[1:] if len(parts) == width + 1 else [""] + parts[1:]
