@@ -241,7 +241,7 @@ def cli_text(message: str) -> str:
     Examples
     --------
     >>> cli_text("jitter 3 %; pass max_jitter=None (Python: max_jitter=)")
-    'jitter 3 %; pass --max-jitter none'
+    'jitter 3 %; give --max-jitter none'
     >>> cli_text("got np.float64(0.035)")
     'got 0.035'
     """
