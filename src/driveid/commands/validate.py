@@ -81,15 +81,18 @@ def _read_as_estimated(files, estimate, record_opts: RecordOptions, result: Path
     from driveid.commands._record_options import reading_as_cli, split_window_spec
     from driveid.io.consistency import warn_duplicates
 
-    if not record_opts.is_default():
-        return record_opts.read_all(files)
+    import dataclasses
+
+    if not dataclasses.replace(record_opts, window=(None, None)).is_default():
+        return record_opts.read_all(files)  # options given: they win
     records = []
     for k, spec in enumerate(files):
         path, _ = split_window_spec(spec)
         reading = _stored_reading(path, estimate, k, len(files))
         opts = record_opts
-        if reading:
-            opts = RecordOptions.from_reading(reading)
+        if reading:  # the stored reading, in the window asked for (--t-start, FILE@T0:T1)
+            opts = dataclasses.replace(RecordOptions.from_reading(reading),
+                                       window=record_opts.window)
             click.echo(f"note: {path.name}: read with the options stored in {result.name}: "
                        f"{reading_as_cli(reading)}", err=True)
         records.append(opts.read(spec))

@@ -257,6 +257,12 @@ def split_header(text: str) -> tuple[str, str | None]:
     return field, None
 
 
+_LABEL_WORDS = {"measured", "meas", "actual", "act", "target", "command", "commanded", "cmd",
+                "desired", "setpoint", "reference", "ref", "motor", "load", "encoder", "raw",
+                "filtered", "left", "right", "master", "slave", "model", "predicted",
+                "estimated", "feedback", "demand", "abs", "rel", "absolute", "relative"}
+
+
 def _could_be_unit(text: str) -> bool:
     """Tell a unit in brackets from an index or label that belongs to the name.
 
@@ -267,6 +273,8 @@ def _could_be_unit(text: str) -> bool:
     text = text.strip()
     if _is_known(normalise_unit(text)):
         return True
+    if text.lower() in _LABEL_WORDS:
+        return False  # 'Position (measured)', 'Torque (motor)'
     if re.fullmatch(r"[+-]?\d+", text) or not re.search(r"[^\W\d_]|[°%\"']", text):
         return False
     return not re.search(r"\s", text) and len(text) <= 12
