@@ -78,10 +78,10 @@ def _stored_reading(path: Path, estimate, position: int, n_files: int) -> dict |
 
 def _read_as_estimated(files, estimate, record_opts: RecordOptions, result: Path) -> list:
     """Read FILEs with the reading options stored in the result, unless options are given."""
+    import dataclasses
+
     from driveid.commands._record_options import reading_as_cli, split_window_spec
     from driveid.io.consistency import warn_duplicates
-
-    import dataclasses
 
     if not dataclasses.replace(record_opts, window=(None, None)).is_default():
         return record_opts.read_all(files)  # options given: they win
