@@ -190,3 +190,12 @@ def test_reading_options_are_kept_for_reuse(tmp_path):
                                    "max_jitter": None}
     assert inputs_of([rec])[0]["reading"] == rec.meta["reading"]
     assert "reading" not in read_record(write_unitless(tmp_path)).meta  # defaults: nothing
+
+
+def test_a_written_record_does_not_carry_the_old_reading(tmp_path):
+    from driveid.io import write_record
+
+    rec = read_record(write_robot_log(tmp_path), columns={"x": "q2"})
+    again = read_record(write_record(rec, tmp_path / "joint2.csv"))
+    # units are in the header now: no note, and no reading options of the old file
+    assert "reading" not in again.meta and again.meta["notes"] == []

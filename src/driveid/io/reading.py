@@ -49,7 +49,8 @@ OPTION_OF_COLUMN = {"t": "--time", "x": "--position", "v": "--velocity", "u": "-
 _WORDS = {"t": "time", "x": "position", "v": "velocity", "u": "force"}
 # provenance of an earlier reading, stale in a file driveid wrote from a read record
 _PROVENANCE = ("source", "sha256", "rows", "columns", "columns_used", "window", "format",
-               "units_in_file", "scale", "fs_given", "window_requested", "resampled")
+               "units_in_file", "scale", "fs_given", "window_requested", "resampled",
+               "notes", "reading", "derived")
 
 
 def file_sha256(path: str | Path) -> str:
