@@ -107,6 +107,14 @@ def _bad_command_lines(tmp: Path):
         ["inspect", str(clean), "--unit", "q=mm"],
         ["validate", str(not_json), str(clean)],
         ["simulate", "drive", "--preset", "testbed-a", "--out", str(clean)],  # exists
+        ["identify", "breakaway", str(clean), "--v-break", "-1"],
+        ["identify", "friction-map", str(clean), "--cutoff-hz", "-5"],
+        ["identify", "hilbert", str(force_only)],
+        ["identify", "wavelet", str(telemetry), "--position", "pos (9)"],
+        ["identify", "step", str(force_only)],
+        ["identify", "static-stiffness", str(clean), "--unit", "u=V"],
+        ["identify", "forced", str(clean), "--scale", "u=1/0"],
+        ["report", str(not_json), "-o", str(tmp / "r.html")],
     ]
 
 
