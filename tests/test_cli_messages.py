@@ -76,6 +76,8 @@ def test_cli_text_translates_and_drops_reprs():
     with click.Context(idim_command):
         assert cli_text("cutoff_hz must be below fs/2 = 32.2 Hz; got 100.0").startswith(
             "--cutoff-hz must be below fs/2")
+    assert "Record.crop" not in cli_text("burst at 3 s: crop the record around them "
+                                         "(Record.crop) or repeat the experiment")
     message = f"got {np.float64(0.035)!r} and {np.int64(3)!r}"
     assert "np." in message  # numpy 2 reprs: what the CLI must not show
     assert cli_text(message) == "got 0.035 and 3"

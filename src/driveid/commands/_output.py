@@ -244,6 +244,8 @@ def cli_text(message: str) -> str:
     'jitter 3 %; give --max-jitter none'
     >>> cli_text("got np.float64(0.035)")
     'got 0.035'
+    >>> cli_text("crop them out (Record.crop)")
+    'crop them out (--t-start/--t-end, or FILE@T0:T1)'
     """
     text = _PYTHON_ASIDE.sub("", str(message))
     text = _REPR.sub(lambda m: m.group(1) if m.group(1) is not None else m.group(2), text)
@@ -263,6 +265,8 @@ def cli_text(message: str) -> str:
     text = _ASSIGN.sub(assign, text)
     text = _IDENTIFIER.sub(lambda m: options.get(m.group(1), m.group(1)), text)
     text = text.replace("pass --", "give --")
+    for python, cli in _PHRASES:
+        text = text.replace(python, cli)
 
     def aside(match: re.Match) -> str:  # '(CLI: --overwrite)' after '--overwrite': said
         inner = match.group(1).strip()
@@ -273,4 +277,7 @@ def cli_text(message: str) -> str:
     return _CLI_ASIDE.sub(aside, text)
 
 
+# API names in hints that have a command-line spelling
+_PHRASES = (("with Record.crop", "with --t-start/--t-end (or FILE@T0:T1)"),
+            ("(Record.crop)", "(--t-start/--t-end, or FILE@T0:T1)"))
 _CLI_ASIDE = re.compile(r"\s*\(CLI:?\s*([^()]*)\)")
