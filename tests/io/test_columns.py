@@ -199,3 +199,21 @@ def test_a_written_record_does_not_carry_the_old_reading(tmp_path):
     again = read_record(write_record(rec, tmp_path / "joint2.csv"))
     # units are in the header now: no note, and no reading options of the old file
     assert "reading" not in again.meta and again.meta["notes"] == []
+
+
+def test_epos_export_nameless_time_by_its_unit_and_a_percent_torque(tmp_path):
+    """Maxon EPOS Studio export: a nameless time column in ms, a unit row with '%'."""
+    path = tmp_path / "epos.csv"
+    rows = "\n".join(f"{40.0 * k:.3f};{100 + k % 3};{1.5 + 0.1 * (k % 2)}" for k in range(60))
+    path.write_text("Date:;2020-07-09 22:31:10\nSampling period:;40.000\n"
+                    ";Velocity actual value averaged;Torque actual value averaged\n"
+                    "ms;rpm;%\n" + rows + "\n")
+    table = read_table(path)
+    assert table.units == {"0": "ms", "Velocity actual value averaged": "rpm",
+                           "Torque actual value averaged": "%"}
+    with pytest.raises(FileFormatError, match=r"in %, a fraction of a rated.*--scale u=RATED/100"):
+        read_record(path, position=False)
+    rec = read_record(path, position=False, scale={"u": "0.5/100"})
+    assert rec.meta["columns_used"]["t"] == "0" and "(its unit ms)" in _notes(rec)
+    assert rec.t[1] == pytest.approx(0.040)  # 40 ms, exactly converted
+    assert rec.v[0] == pytest.approx(100 * math.pi / 30)  # 100 rpm in rad/s

@@ -228,6 +228,18 @@ def _choose(table: Table, columns: Mapping[str, str | int] | None
                    f"{OPTION_OF_COLUMN[col]} none"))
             continue
         if not top:
+            top = _by_unit(table, free, col)  # a nameless column with a telling unit
+            if len(top) > 1:
+                problems.append(
+                    f"{len(top)} columns are in units of a {_WORDS[col]}: "
+                    f"{', '.join(repr(c.name) for c in top)}; choose one with "
+                    f"{OPTION_OF_COLUMN[col]} COL")
+                continue
+            if top:
+                chosen[col] = top[0].name
+                notes.append(
+                    f"read column {top[0].name!r} as the {_WORDS[col]} (its unit "
+                    f"{table.units[top[0].name]}); {OPTION_OF_COLUMN[col]} COL chooses another")
             continue
         pick = top[0]
         chosen[col] = pick.name
@@ -251,6 +263,19 @@ def _choose(table: Table, columns: Mapping[str, str | int] | None
                 f"{pick.name!r} is read as joint velocity (q-dot); if it is the desired "
                 "position, give --velocity none")
     return chosen, notes, problems
+
+
+def _by_unit(table: Table, free: list[str], col: str) -> list[Any]:
+    """Columns whose name says nothing but whose unit belongs to one quantity only."""
+    from driveid.io.columns import parse_column_name
+    from driveid.io.units import UNIT_CONVERSIONS
+
+    out = []
+    for name in free:
+        parsed = parse_column_name(name)
+        if parsed.quantity is None and table.units.get(name) in UNIT_CONVERSIONS[col]:
+            out.append(parsed)
+    return out
 
 
 def _joined(source: str, problems: list[str]) -> str:
@@ -600,7 +625,7 @@ def convert_table(
     if problems:
         raise FileFormatError(_joined(name, problems))
     if "t" not in arrays:
-        n = next(iter(arrays.values())).size if arrays else 0
+        n = next(iter(arrays.values())).size if arrays else table.rows
         arrays["t"] = table.t0 + np.arange(n) / rate
     arrays = _trim_missing(arrays, name)
     _complete_units(si, applied_scale)

@@ -236,10 +236,17 @@ def _is_unit_row(parts: list[str]) -> bool:
         text = part.strip().strip("[]()")
         if not text:
             continue
-        if not _known_unit(text):
+        if _known_unit(text):
+            known += 1
+        elif text.lower() not in _OTHER_UNITS:
             return False
-        known += 1
     return known > 0
+
+
+# units of quantities that are no record column, seen in unit rows beside known ones
+# (Maxon EPOS: 'ms;rpm;%' - a torque in % of the rated torque)
+_OTHER_UNITS = {"%", "-", "°c", "degc", "k", "bar", "pa", "kpa", "mpa", "hz", "khz", "w",
+                "kw", "ohm", "Ω", "digits", "inc", "g", "m/s²", "m/s^2", "rad/s²", "rad/s^2"}
 
 
 def _seconds(values: Any) -> np.ndarray | None:

@@ -197,6 +197,11 @@ def to_si(column: str, unit: str, *, source: str = "", counts_per_rev: float | N
         base = ("rad", 2 * math.pi / counts_per_rev) if counts_per_rev else (
             "m", 1.0 / counts_per_metre)
         return (base[0] + ("/s" if column == "v" else ""), base[1])
+    if canonical == "%":
+        raise FileFormatError(
+            f"{where}column {column!r} is in %, a fraction of a rated or nominal value that "
+            f"the file does not give; state it with --scale {column}=RATED/100 (e.g. "
+            f"--scale {column}=0.5/100 for 0.5 N·m rated; the scaled values are then SI)")
     if canonical in ELECTRICAL_UNITS:
         raise FileFormatError(
             f"{where}column {column!r} is in {unit!r}, an electrical unit; driveid does not "
