@@ -295,3 +295,32 @@ def test_a_speed_only_log_is_read_by_a_command_that_needs_no_position(tmp_path):
     assert "no position column: the position is the velocity integrated" in res.stderr
     res = CliRunner().invoke(logdec_command, [str(path), "--mass", "1"])
     assert res.exit_code == 2 and "no position column" in res.stderr  # this one needs it
+
+
+def test_friction_map_reads_a_speed_only_plateau_log(tmp_path):
+    """Issue 26: constant-speed plateaus need velocity and torque, not a position."""
+    import numpy as np
+
+    rng = np.random.default_rng(3)
+    speeds = [-20.0, -10.0, -5.0, -2.0, 2.0, 5.0, 10.0, 20.0]  # [rad/s]
+    t, v, u = [], [], []
+    for k, w in enumerate(speeds):
+        tk = k * 2.0 + np.arange(1000) / 500.0
+        t.append(tk)
+        v.append(np.full(tk.size, w) + 0.01 * rng.standard_normal(tk.size))
+        u.append(0.2 * np.sign(w) + 0.01 * w + 1e-3 * rng.standard_normal(tk.size))
+    path = tmp_path / "plateaus.csv"
+    path.write_text("time [s],speed [rad/s],torque [N·m]\n" + "\n".join(
+        f"{a:.4f},{b:.6f},{c:.6f}" for a, b, c in zip(np.concatenate(t), np.concatenate(v),
+                                                      np.concatenate(u), strict=True)))
+    from driveid.commands.friction import friction_map_command
+
+    res = CliRunner().invoke(friction_map_command, [str(path), "--models", "coulomb_viscous",
+                                                    "--json"])
+    assert res.exit_code == 0, res.output
+    par = json.loads(res.stdout)["parameters"]
+    # 8 plateaus of 1000 samples, 1e-3 N·m noise: Coulomb 0.2 and viscous 0.01 within 2 %
+    fc = [p["value"] for n, p in par.items() if n.startswith("Fc")]
+    fv = [p["value"] for n, p in par.items() if n.startswith("Fv")]
+    assert fc and all(abs(f - 0.2) < 0.004 for f in fc), par
+    assert fv and all(abs(f - 0.01) < 2e-4 for f in fv), par

@@ -231,7 +231,7 @@ def friction_map_command(files, models, rel_tol, min_samples, min_speed, max_spe
         if path.is_dir():
             records += read_tro2021_steady_state(path)
         else:
-            records.append(opts.read(f))
+            records.append(opts.read(f, position=False))  # speed-only logs will do
     names = tuple(m.strip() for m in models.split(",") if m.strip())
     points = []
     for rec in records:
