@@ -42,8 +42,8 @@ ACCELERATION_WORDS = ("ddq", "qdd", "qddot", "acc", "accel", "acceleration", "dd
                       "alpha", "ddtheta")
 # single letters count only as the first word: 'Weg &b_A1' is no acceleration 'a'
 _SINGLE = {"t", "x", "q", "v", "u", "f"}
-_MEASURED = {"measured", "meas", "msr", "act", "actual", "fb", "feedback", "ist", "real",
-             "sensor", "sensed", "encoder", "enc", "obs", "observed"}
+_MEASURED = {"measured", "meas", "msr", "act", "actual", "fb", "feedback", "ist", "present",
+             "real", "sensor", "sensed", "encoder", "enc", "obs", "observed"}
 _TARGET = {"target", "tgt", "cmd", "command", "commanded", "desired", "des", "ref",
            "reference", "setpoint", "sp", "set", "demand", "soll", "goal", "d", "trajectory",
            "traj", "planned", "plan"}
