@@ -91,7 +91,7 @@ class ColumnName:
 
 _WORD_OF: dict[str, str] = {w: col for col, words in QUANTITY_WORDS.items() for w in words}
 _WORD_OF.update({w: "a" for w in ACCELERATION_WORDS})
-_ROBOT = {"q", "dq", "qd", "qdot", "ddq", "qdd", "tau", "theta", "dtheta"}
+_ROBOT = {"q", "dq", "qd", "qdot", "ddq", "qdd", "tau"}
 
 
 def _tokens(name: str) -> list[str]:

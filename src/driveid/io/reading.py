@@ -246,14 +246,14 @@ def _choose(table: Table, columns: Mapping[str, str | int] | None
         if col != "t" and joint is None and pick.joint is not None and pick.convention:
             joint = pick.joint
         why = []
-        if pick.convention and not pick.exact or pick.name.lower() in ("qd", "dq"):
+        if pick.convention:  # q, dq, qd, tau, a joint number: shown, never silent
             why.append("robot/servo naming convention")
         if pick.role != "plain":
             why.append(pick.role_words)
         if passed:
             why.append("passed over: " + ", ".join(
                 f"{c.name!r} ({c.role_words})" for c in passed[:6]))
-        if why or (pick.convention and pick.joint is not None):
+        if why:
             notes.append(
                 f"read column {pick.name!r} as the {_WORDS[col]} ({'; '.join(why) or 'name'})"
                 f"; {OPTION_OF_COLUMN[col]} COL chooses another"
