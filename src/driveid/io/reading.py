@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from driveid.errors import FileFormatError
+from driveid.io.registers import decode_sign_magnitude, sign_magnitude_suspect
 from driveid.io.tables import Table, read_table
 from driveid.io.units import split_header, to_si
 
@@ -581,7 +582,7 @@ def convert_table(
                 problems.append(f"column {fname!r} ({OPTION_OF_COLUMN[col]}): {exc}")
                 continue
         else:
-            bits = _sign_magnitude_suspect(arrays[col])
+            bits = sign_magnitude_suspect(arrays[col])
             if bits:
                 import warnings
 
@@ -686,74 +687,6 @@ def _reading_options(columns, fs, max_jitter, scale, units, counts_per_rev, coun
     if sign_magnitude:
         out["sign_magnitude"] = {k: int(v) for k, v in sign_magnitude.items()}
     return out
-
-
-def decode_sign_magnitude(values: np.ndarray, bits: int) -> np.ndarray:
-    """Decode integers stored as sign-magnitude registers (top bit the sign).
-
-    Parameters
-    ----------
-    values : ndarray, shape (n,)
-        Raw register values, integers in ``[0, 2**bits)`` [-].
-    bits : int
-        Register width [bits], 2 to 64.
-
-    Returns
-    -------
-    ndarray, shape (n,)
-        Signed values: ``v`` below ``2**(bits-1)``, ``-(v - 2**(bits-1))`` above [-].
-
-    Raises
-    ------
-    FileFormatError
-        If ``bits`` is out of range or a value is not an integer of the register.
-
-    Examples
-    --------
-    >>> decode_sign_magnitude(np.array([5.0, 32773.0, 0.0]), 16).tolist()
-    [5.0, -5.0, 0.0]
-    """
-    try:
-        bits = int(bits)
-    except (TypeError, ValueError):
-        raise FileFormatError(f"a sign-magnitude register width is a number of bits; got "
-                              f"{bits!r}") from None
-    if not 2 <= bits <= 64:
-        raise FileFormatError(f"a sign-magnitude register has 2 to 64 bits; got {bits}")
-    values = np.asarray(values, dtype=float)
-    finite = values[np.isfinite(values)]
-    top = 2.0 ** bits
-    if finite.size and (np.any(finite != np.round(finite)) or finite.min() < 0
-                        or finite.max() >= top):
-        raise FileFormatError(
-            f"a {bits}-bit sign-magnitude register holds integers 0..{top - 1:.0f}; got "
-            f"values from {finite.min():g} to {finite.max():g}")
-    half = 2.0 ** (bits - 1)
-    return np.where(values >= half, -(values - half), values)
-
-
-def _sign_magnitude_suspect(values: np.ndarray) -> int | None:
-    """Register width of a column that looks like undecoded sign-magnitude, else None.
-
-    Integers only, none negative, and two clusters: small values and values just above a
-    power of two (the sign bit), with the band between them empty.
-    """
-    if values.size < 8 or values.dtype.kind != "f":
-        return None
-    sample = values[:: max(1, values.size // 20000)]
-    sample = sample[np.isfinite(sample)]
-    if not sample.size or sample.min() < 0 or np.any(sample != np.round(sample)):
-        return None
-    for bits in (8, 12, 16, 24, 32):
-        half = 2.0 ** (bits - 1)
-        if not half <= sample.max() < 2 * half:
-            continue
-        high = sample[sample >= half] - half
-        low = sample[sample < half]
-        # an unsigned count that crosses the sign bit fills the band between the clusters
-        if high.size and low.size and high.max() < half / 2 and low.max() < half / 2:
-            return bits
-    return None
 
 
 def _numeric(values: np.ndarray, fname: str, source: str) -> np.ndarray:
