@@ -189,6 +189,7 @@ def test_reading_options_are_kept_for_reuse(tmp_path):
     assert rec.meta["reading"] == {"columns": {"x": "q2"}, "units": {"x": "rad"},
                                    "max_jitter": None}
     assert inputs_of([rec])[0]["reading"] == rec.meta["reading"]
+    assert inputs_of([rec])[0]["notes"] == rec.meta["notes"]  # kept with the result
     assert "reading" not in read_record(write_unitless(tmp_path)).meta  # defaults: nothing
 
 
