@@ -48,10 +48,20 @@ def test_servo_telemetry_full_name_is_that_column_and_the_torque_follows(tmp_pat
     with pytest.raises(FileFormatError, match=r"'pos' for the position .* fits 3 columns: "
                                               r"\[1\] 'pos \(5\)', \[2\] 'pos \(3\)'"):
         read_record(path, columns={"x": "pos"})
-    # nothing asked: ambiguous position and force, both in one message
-    with pytest.raises(FileFormatError, match=r"2 problems: \(1\) 3 columns could be the "
-                                              r"position.*\(2\) 3 columns could be the force"):
+    # nothing asked: the position is ambiguous, refused with the candidates
+    with pytest.raises(FileFormatError, match=r"3 columns could be the position: 'pos \(5\)', "
+                                              r"'pos \(3\)', 'pos \(4\)'"):
         read_record(path)
+    # the torque follows the servo number of the position
+    rec = read_record(path, columns={"x": 2})  # by index: servo 3 again
+    assert rec.u is not None and rec.meta["columns_used"]["u"] == "torque (3)"
+    # an ambiguous optional column (two velocities of a Tracker table) is left out, said so
+    tracker = tmp_path / "pendulum.txt"
+    tracker.write_text("mass A\nt\tθ\tω\tv\n" + "\n".join(
+        f"{k / 100}\t{k}\t1\t2" for k in range(20)))
+    rec = read_record(tracker, columns={"x": "θ"})
+    assert rec.v is None and "2 columns could be the velocity: 'ω', 'v'; none is used" \
+        in _notes(rec)
 
 
 def test_robot_log_conventions_joint_numbers_and_predictions(tmp_path):

@@ -31,15 +31,15 @@ __all__ = ["QUANTITY_WORDS", "ColumnName", "parse_column_name", "rank_candidates
 QUANTITY_WORDS: dict[str, tuple[str, ...]] = {
     "t": ("t", "time", "zeit", "timestamp", "times", "sec", "seconds", "stamp"),
     "x": ("x", "position", "pos", "weg", "theta", "q", "angle", "winkel", "displacement",
-          "disp", "lage", "posistion", "encoder", "enc"),
+          "disp", "lage", "posistion", "encoder", "enc", "θ", "φ", "phi"),
     "v": ("v", "velocity", "vel", "speed", "omega", "geschwindigkeit", "drehzahl", "dq",
-          "qd", "qdot", "dtheta", "thetadot", "dx", "xd", "xdot", "rpm"),
+          "qd", "qdot", "dtheta", "thetadot", "dx", "xd", "xdot", "rpm", "ω"),
     "u": ("u", "force", "torque", "tau", "f", "kraft", "moment", "drehmoment", "load",
-          "effort", "trq", "tq", "load cell", "loadcell"),
+          "effort", "trq", "tq", "load cell", "loadcell", "τ"),
 }
 #: Words of an acceleration column: recognised so that it is never read as something else.
 ACCELERATION_WORDS = ("ddq", "qdd", "qddot", "acc", "accel", "acceleration", "ddx", "xdd",
-                      "alpha", "ddtheta")
+                      "alpha", "ddtheta", "α")
 # single letters count only as the first word: 'Weg &b_A1' is no acceleration 'a'
 _SINGLE = {"t", "x", "q", "v", "u", "f"}
 _MEASURED = {"measured", "meas", "msr", "act", "actual", "fb", "feedback", "ist", "present",

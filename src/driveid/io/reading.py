@@ -216,17 +216,20 @@ def _choose(table: Table, columns: Mapping[str, str | int] | None
     joint = next((parse_column_name(chosen[c]).joint for c in ("x", "v", "u")
                   if c in chosen and parse_column_name(chosen[c]).quantity), None)
     for col in ("x", "v", "u", "t"):  # position first: velocity and force follow its joint
-        if col in chosen or col in ignored or col in mapping:
-            continue
+        if col in chosen or col in ignored or str(mapping.get(col) or "").strip():
+            continue  # chosen, ignored, or asked for (and then reported if not found)
         free = [n for n in table.columns if n not in chosen.values()]
         top, passed = rank_candidates(free, col, joint=None if col == "t" else joint)
         if len(top) > 1:
+            listed = ", ".join(repr(c.name) for c in top)
+            if col in ("v", "u"):  # optional: left out, and said so
+                notes.append(
+                    f"{len(top)} columns could be the {_WORDS[col]}: {listed}; none is used: "
+                    f"choose one with {OPTION_OF_COLUMN[col]} COL")
+                continue
             problems.append(
-                f"{len(top)} columns could be the {_WORDS[col]}: "
-                f"{', '.join(repr(c.name) for c in top)}; choose one with "
-                f"{OPTION_OF_COLUMN[col]} COL (full name or 0-based index)"
-                + ("" if col in ("t", "x") else f", or ignore them with "
-                   f"{OPTION_OF_COLUMN[col]} none"))
+                f"{len(top)} columns could be the {_WORDS[col]}: {listed}; choose one with "
+                f"{OPTION_OF_COLUMN[col]} COL (full name or 0-based index)")
             continue
         if not top:
             top = _by_unit(table, free, col)  # a nameless column with a telling unit
