@@ -7,6 +7,7 @@ documented options and must give the estimate of the equivalent clean CSV.
 import ast
 import importlib
 import json
+import math
 import re
 from pathlib import Path
 
@@ -64,7 +65,8 @@ def test_one_command_per_format_gives_the_clean_estimate(tmp_path, references, n
 def test_jittery_trace_is_refused_then_resampled_with_a_warning(tmp_path):
     path = write_cassy(tmp_path)
     res = CliRunner().invoke(logdec_command, [str(path), "--mass", "1"])
-    assert res.exit_code == 2 and "max_jitter" in res.stderr and "Traceback" not in res.output
+    assert res.exit_code == 2 and "--max-jitter none" in res.stderr
+    assert "max_jitter" not in res.stderr and "Traceback" not in res.output  # CLI spelling
     res = CliRunner().invoke(logdec_command, [str(path), "--mass", "1", "--max-jitter", "none",
                                               "--json"])
     out = _json(res)
@@ -107,8 +109,12 @@ def test_simulate_drive_then_logdec(tmp_path):
     assert par["c_mean"]["value"] == pytest.approx(float(a) + plant.bodies[0].c_mean, rel=1e-3)
     res = CliRunner().invoke(drive_command, ["--preset", "testbed-a", "--out", str(out)])
     assert res.exit_code == 2 and "--overwrite" in res.stderr
-    res = CliRunner().invoke(logdec_command, [str(out)])  # no column named like a position
-    assert res.exit_code == 2 and "--position COL" in res.stderr and "x1" in res.stderr
+    # 'x1' is body 1's position by the joint-number convention: read, and the choice shown
+    from driveid.commands.inspect import inspect_command
+
+    res = CliRunner().invoke(inspect_command, [str(out)])
+    assert res.exit_code == 0, res.output
+    assert "read column 'x1' as the position" in res.output and "--position COL" in res.output
 
 
 def test_windows_per_file_and_options(tmp_path):
@@ -215,3 +221,106 @@ def test_estimators_resample_a_non_uniform_record_with_a_warning():
         # K/J = 16: ω0 = 4 rad/s; linear resampling at 250 samples per period costs < 1e-4
         assert est.value("omega0") == pytest.approx(4.0, rel=1e-3)
     assert np.ptp(np.diff(t)) > 1e-5  # the record really was non-uniform
+
+
+def test_validate_and_report_reuse_the_reading_options_of_the_result(tmp_path):
+    """Issue 26: 'validate RESULT.json FILE' reads FILE as the identification read it."""
+    from driveid.commands.report import report_command
+    from driveid.commands.validate import validate_command
+    from tests.fixtures.formats import write_robot_log
+
+    path = write_robot_log(tmp_path)
+    res = CliRunner().invoke(logdec_command, [str(path), "--position", "q2", "--mass", "1",
+                                              "--json"])
+    out = _json(res)
+    assert out["inputs"][0]["reading"] == {"columns": {"x": "q2"}}
+    assert "note: robot_log.txt: read column 'dq2' as the velocity" in res.stderr
+    result = tmp_path / "result.json"
+    result.write_text(res.stdout)
+    # without --position the robot log is ambiguous (q1, q2): the stored choice is reused
+    res = CliRunner().invoke(validate_command, [str(result), str(path), "--json"])
+    assert res.exit_code == 0, res.output
+    assert "read with the options stored in result.json: --position q2" in res.stderr
+    fit = json.loads(res.stdout)["fit"]
+    assert fit > 0.99  # the model of joint 2 on joint 2's decay (noise-free): near-perfect
+    # options given on the command line win over the stored ones
+    res = CliRunner().invoke(validate_command, [str(result), str(path), "--position", "q1"])
+    assert "options stored" not in res.stderr
+    # the report shows how each input was read, as the options that read it again
+    html = tmp_path / "r.html"
+    res = CliRunner().invoke(report_command, [str(result), "-o", str(html)])
+    assert res.exit_code == 0, res.output
+    assert "read with --position q2" in html.read_text(encoding="utf-8")
+
+
+def test_fleet_default_is_the_identify_logdec_estimator_and_given_stderr_is_null(tmp_path):
+    from driveid.catalog import Catalog
+    from driveid.fleet import identify_file
+
+    path = write_clean_csv(tmp_path)
+    out = identify_file(path, method_options={"mass": 1.0})
+    assert out["status"] == "ok" and out["result"]["method"] == "output-error"
+    assert out["result"]["parameters"]["J"]["stderr"] is None
+    peaks = identify_file(path, method="logdec", method_options={"mass": 1.0})
+    assert peaks["result"]["parameters"]["J"]["stderr"] is None  # the estimator says 0.0
+    with Catalog(tmp_path / "c.sqlite") as cat:
+        result = dict(peaks["result"])
+        result["parameters"] = {**result["parameters"],
+                                "J": {**result["parameters"]["J"], "stderr": 0.0}}
+        cat.add_result(result, machine="m", axis="x")
+        (entry,) = cat.entries()
+        # stored null (NaN when read back), as the result schema says for a given value
+        assert entry.parameters["J"].fixed and math.isnan(entry.parameters["J"].stderr)
+
+
+def test_a_speed_only_log_is_read_by_a_command_that_needs_no_position(tmp_path):
+    """Issue 26: `identify step` uses the velocity; a drive log without position will do."""
+    import numpy as np
+    from scipy import signal
+
+    from driveid.commands.static import step_command
+
+    zeta, w0 = 0.2, 20.0
+    t = np.arange(8000) / 1000.0
+    cmd = np.where((t % 2.0) < 1.0, 1.0, 0.0) + 0.5
+    _, y, _ = signal.lsim(signal.lti([w0**2], [1, 2 * zeta * w0, w0**2]), cmd, t)
+    path = tmp_path / "speed_log.csv"
+    path.write_text("time [s],speed [rpm],torque_cmd [N·m]\n" + "\n".join(
+        f"{a:.4f},{b * 30 / math.pi:.10g},{c}" for a, b, c in zip(t, y, cmd, strict=True)))
+    res = CliRunner().invoke(step_command, [str(path), "--t-start", "1.0", "--json"])
+    assert res.exit_code == 0, res.output
+    # as the test of the command on a full record: the damping within 5 %
+    assert json.loads(res.stdout)["parameters"]["zeta"]["value"] == pytest.approx(zeta,
+                                                                                  rel=0.05)
+    assert "no position column: the position is the velocity integrated" in res.stderr
+    res = CliRunner().invoke(logdec_command, [str(path), "--mass", "1"])
+    assert res.exit_code == 2 and "no position column" in res.stderr  # this one needs it
+
+
+def test_friction_map_reads_a_speed_only_plateau_log(tmp_path):
+    """Issue 26: constant-speed plateaus need velocity and torque, not a position."""
+    import numpy as np
+
+    rng = np.random.default_rng(3)
+    speeds = [-20.0, -10.0, -5.0, -2.0, 2.0, 5.0, 10.0, 20.0]  # [rad/s]
+    t, v, u = [], [], []
+    for k, w in enumerate(speeds):
+        tk = k * 2.0 + np.arange(1000) / 500.0
+        t.append(tk)
+        v.append(np.full(tk.size, w) + 0.01 * rng.standard_normal(tk.size))
+        u.append(0.2 * np.sign(w) + 0.01 * w + 1e-3 * rng.standard_normal(tk.size))
+    path = tmp_path / "plateaus.csv"
+    path.write_text("time [s],speed [rad/s],torque [N·m]\n" + "\n".join(
+        f"{a:.4f},{b:.6f},{c:.6f}" for a, b, c in zip(np.concatenate(t), np.concatenate(v),
+                                                      np.concatenate(u), strict=True)))
+    from driveid.commands.friction import friction_map_command
+
+    res = CliRunner().invoke(friction_map_command, [str(path), "--models", "coulomb_viscous",
+                                                    "--json"])
+    assert res.exit_code == 0, res.output
+    par = json.loads(res.stdout)["parameters"]
+    # 8 plateaus of 1000 samples, 1e-3 N·m noise: Coulomb 0.2 and viscous 0.01 within 2 %
+    fc = [p["value"] for n, p in par.items() if n.startswith("Fc")]
+    fv = [p["value"] for n, p in par.items() if n.startswith("Fv")]
+    assert fc and all(abs(f - 0.2) < 0.004 for f in fc), par
+    assert fv and all(abs(f - 0.01) < 2e-4 for f in fv), par

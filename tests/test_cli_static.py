@@ -53,7 +53,7 @@ def test_breakaway_command(tmp_path):
     res = _run(breakaway_command, [*paths, "--v-break", "0.05", "--figure", fig])
     assert res.exit_code == 2 and "error:" in res.output  # no overwrite without --overwrite
     res = _run(breakaway_command, [paths[0], "--v-break", "-1"])
-    assert res.exit_code == 2 and res.output.startswith("error: v_break must be")
+    assert res.exit_code == 2 and res.output.startswith("error: --v-break must be")
 
 
 def test_loop_command_presliding_and_backlash(tmp_path):

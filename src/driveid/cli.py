@@ -70,7 +70,9 @@ _DROPPED = (DeprecationWarning, PendingDeprecationWarning, FutureWarning, Import
 
 
 def _one_line(text: Any) -> str:
-    text = " ".join(str(text).split())
+    from driveid.commands._output import cli_text  # CLI spellings, no reprs (issue 26)
+
+    text = " ".join(cli_text(str(text)).split())
     return text if len(text) <= _MAX_MESSAGE else text[:_MAX_MESSAGE - 3] + "..."
 
 

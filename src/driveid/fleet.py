@@ -160,7 +160,7 @@ def _group(name: str) -> str:
     return f"(?P<{name}>[^/]+?)"
 
 
-def identify_file(path: str | Path, *, method: str = "logdec",
+def identify_file(path: str | Path, *, method: str = "output-error",
                   method_options: Mapping[str, Any] | None = None,
                   record_options: Mapping[str, Any] | None = None,
                   sha256: str | None = None) -> dict[str, Any]:
@@ -170,8 +170,9 @@ def identify_file(path: str | Path, *, method: str = "logdec",
     ----------
     path : str or Path
         The record.
-    method : {"logdec", "output-error"}
-        Estimator.
+    method : {"output-error", "logdec"}
+        Estimator: the whole-record output-error fit (default, as ``identify logdec``) or
+        the peak log decrement.
     method_options : mapping, optional
         Keywords of the estimator (e.g. ``{"mass": 1.0}``).
     record_options : mapping, optional
@@ -207,8 +208,10 @@ def identify_file(path: str | Path, *, method: str = "logdec",
                 "error": f"{type(exc).__name__}: {exc}",
                 "cpu_seconds": time.process_time() - cpu_start}
     messages = list(est.warnings) + [str(w.message) for w in caught]
-    params = {n: {"value": p.value, "stderr": p.stderr, "unit": p.unit,
-                  "fixed": bool(getattr(p, "fixed", False))} for n, p in est.params.items()}
+    # a given parameter has no standard error: null, as in the result schema (issue 26)
+    params = {n: {"value": p.value, "stderr": None if getattr(p, "fixed", False) else p.stderr,
+                  "unit": p.unit, "fixed": bool(getattr(p, "fixed", False))}
+              for n, p in est.params.items()}
     cov = None
     if est.covariance is not None:
         cov = {"names": list(est.covariance["names"]),
@@ -284,7 +287,7 @@ def _expand(paths: str | Path | Iterable[str | Path]) -> list[Path]:
     return list(dict.fromkeys(found))
 
 
-def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "logdec",
+def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "output-error",
                   method_options: Mapping[str, Any] | None = None,
                   record_options: Mapping[str, Any] | Any | None = None,
                   catalog: str | Path | Catalog | None = None, client: Any = None,
@@ -298,8 +301,9 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "lo
     ----------
     paths : str or Path or sequence
         Record files or glob patterns (``'traces/**/*.csv'``, recursive).
-    method : {"logdec", "output-error"}
-        Estimator; ``output-error`` needs :mod:`driveid.identify.output_error`.
+    method : {"output-error", "logdec"}
+        Estimator: the whole-record output-error fit (default, the one ``identify logdec``
+        runs; near the Cramér-Rao bound) or the peak log decrement (``logdec``).
     method_options : mapping, optional
         Estimator keywords, e.g. ``{"mass": 1.0}`` [kg or kg·m²]; checked before submitting.
     record_options : mapping or RecordOptions, optional

@@ -136,7 +136,7 @@ def test_idim_command_synthetic_and_error(tmp_path):
     assert res.exit_code == 0, res.output
     assert "cross-test" in res.output and (tmp_path / "f.png").is_file()
     res = CliRunner().invoke(idim_command, [str(path), "--cutoff-hz", "900"])
-    assert res.exit_code == 2 and res.output.startswith("error: cutoff_hz must be below")
+    assert res.exit_code == 2 and res.output.startswith("error: --cutoff-hz must be below")
     res = CliRunner().invoke(idim_command, [str(path), "--cutoff-hz", "50", "--simulate"])
     assert res.exit_code == 2 and "reads the EMPS loop variables" in res.output
 

@@ -89,7 +89,9 @@ def test_every_fixture_reads_the_reference_decay(tmp_path, name):
         if opt in options:
             columns[col] = options[options.index(opt) + 1]
     jitter = None if "none" in options else 0.01
-    rec = read_record(path, columns=columns, max_jitter=jitter)
+    units = dict(options[k + 1].split("=", 1) for k, opt in enumerate(options)
+                 if opt == "--unit")
+    rec = read_record(path, columns=columns, max_jitter=jitter, units=units)
     ref = decay()
     if name == "cassy":
         # jittery time: compare against the cubic interpolant's values at those times

@@ -538,7 +538,9 @@ class Catalog:
         if row["params"]:
             conn.execute(S.parameters.insert(), [
                 {"entry_id": entry_id, "name": n, "value": _nan_to_none(p.value),
-                 "stderr": _nan_to_none(p.stderr), "unit": p.unit, "fixed": p.fixed}
+                 # a given parameter has no standard error: null, never 0 (issue 26)
+                 "stderr": None if p.fixed else _nan_to_none(p.stderr), "unit": p.unit,
+                 "fixed": p.fixed}
                 for n, p in row["params"].items()])
         if row["cov"] is not None:
             names, matrix = row["cov"]

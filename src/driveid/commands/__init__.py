@@ -55,8 +55,14 @@ def mark_printed(messages: list[str] | tuple[str, ...]) -> None:
 def _echo_pending() -> None:
     for entry in _CAPTURED.get() or []:
         if not entry[1]:
-            click.echo(f"warning: {entry[0]}", err=True)
+            click.echo(f"warning: {_cli_text(entry[0])}", err=True)
             entry[1] = True
+
+
+def _cli_text(text: str) -> str:
+    from driveid.commands._output import cli_text  # CLI spellings, no reprs (issue 26)
+
+    return cli_text(text)
 
 
 def clean_errors(func: Callable[..., Any]) -> Callable[..., Any]:
@@ -98,10 +104,10 @@ def clean_errors(func: Callable[..., Any]) -> Callable[..., Any]:
                     _echo_pending()
         except (DriveIdError, FileNotFoundError, PermissionError, IsADirectoryError,
                 NotADirectoryError) as exc:
-            click.echo(f"error: {exc}", err=True)
+            click.echo(f"error: {_cli_text(str(exc))}", err=True)
             raise SystemExit(2) from None
         except click.ClickException as exc:
-            click.echo(f"error: {exc.format_message()}", err=True)
+            click.echo(f"error: {_cli_text(exc.format_message())}", err=True)
             raise SystemExit(2) from None
         finally:
             _CAPTURED.reset(token)

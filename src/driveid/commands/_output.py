@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -19,7 +20,7 @@ from typing import Any
 
 import click
 
-__all__ = ["OutputOptions", "output_options", "emit", "plot_of"]
+__all__ = ["OutputOptions", "output_options", "emit", "plot_of", "cli_text"]
 
 
 @dataclass(frozen=True)
@@ -131,7 +132,7 @@ def emit(est: Any, opts: OutputOptions, *, records: Sequence[Any] = (),
     if records and not est.inputs:
         est = est.with_inputs(records)
     for message in est.warnings:
-        click.echo(f"warning: {message}", err=True)
+        click.echo(f"warning: {cli_text(message)}", err=True)
     mark_printed(est.warnings)
     if opts.strict and est.warnings:
         raise IdentificationError(
@@ -183,3 +184,100 @@ def plot_of(est: Any, records: Any) -> Any:
     from driveid.report.figures import plot_estimate
 
     return plot_estimate(est, record=records)
+
+
+# -- messages on the command line speak CLI (issue 26) ------------------------------------
+#: Python keywords of the reading API -> the CLI option, for messages raised below a command.
+_READING_OPTIONS = {"max_jitter": "--max-jitter", "counts_per_rev": "--counts-per-rev",
+                    "counts_per_metre": "--counts-per-metre", "overwrite": "--overwrite",
+                    "sign_magnitude": "--sign-magnitude", "fs": "--fs"}
+_REPR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool)\w*\(\s*([^()]*?)\s*\)|"
+                   r"\bnp\.str_\(\s*([^()]*?)\s*\)")
+_ASSIGN = re.compile(r"(?<![\w.\-])([a-z][a-z0-9_]*)=(None|True|False|[^\s,;)]+)?")
+_PYTHON_ASIDE = re.compile(r"\s*\((?:Python|API)\s*:[^()]*(?:\([^()]*\)[^()]*)*\)")
+# a keyword as the subject of a rule ('cutoff_hz must be below fs/2'); other words with an
+# underscore (parameter names such as fk_mean in a warning) stay as they are
+_IDENTIFIER = re.compile(r"(?<![\w.\-])([a-z][a-z0-9]*_[a-z0-9_]*[a-z0-9])"
+                         r"(?=\s+(?:must|should|needs|takes|cannot|is not|has to)\b)")
+
+
+def _options_of_command() -> dict[str, str]:
+    """Python name -> long option of the running click command (and its record options)."""
+    options = dict(_READING_OPTIONS)
+    ctx = click.get_current_context(silent=True)
+    while ctx is not None:
+        for param in getattr(ctx.command, "params", ()):
+            if not isinstance(param, click.Option):
+                continue
+            longs = [o for o in param.opts if o.startswith("--")]
+            if not longs:
+                continue
+            for flag in longs:
+                options.setdefault(flag[2:].replace("-", "_"), flag)
+            if param.name:
+                options.setdefault(param.name, longs[0])
+        ctx = ctx.parent
+    return options
+
+
+def cli_text(message: str) -> str:
+    """Return a message for the command line: CLI option spellings, no Python reprs.
+
+    The API speaks Python (``pass max_jitter=None``, ``cutoff_hz must be ...``); on the
+    command line the same message names the options (``--max-jitter none``,
+    ``--cutoff-hz``). ``(Python: ...)`` asides are dropped and numpy reprs
+    (``np.float64(0.035)``) become their numbers.
+
+    Parameters
+    ----------
+    message : str
+        An error or warning text.
+
+    Returns
+    -------
+    str
+        The text to print.
+
+    Examples
+    --------
+    >>> cli_text("jitter 3 %; pass max_jitter=None (Python: max_jitter=)")
+    'jitter 3 %; give --max-jitter none'
+    >>> cli_text("got np.float64(0.035)")
+    'got 0.035'
+    >>> cli_text("crop them out (Record.crop)")
+    'crop them out (--t-start/--t-end, or FILE@T0:T1)'
+    """
+    text = _PYTHON_ASIDE.sub("", str(message))
+    text = _REPR.sub(lambda m: m.group(1) if m.group(1) is not None else m.group(2), text)
+    options = _options_of_command()
+
+    def assign(match: re.Match) -> str:
+        name, value = match.group(1), match.group(2)
+        flag = options.get(name)
+        if flag is None:
+            return match.group(0)
+        if value in (None, "True"):
+            return flag
+        if value == "False":
+            return f"no {flag}"
+        return f"{flag} {'none' if value == 'None' else value}"
+
+    text = _ASSIGN.sub(assign, text)
+    text = _IDENTIFIER.sub(lambda m: options.get(m.group(1), m.group(1)), text)
+    text = text.replace("pass --", "give --")
+    for python, cli in _PHRASES:
+        text = text.replace(python, cli)
+
+    def aside(match: re.Match) -> str:  # '(CLI: --overwrite)' after '--overwrite': said
+        inner = match.group(1).strip()
+        flag = re.match(r"--[\w-]+", inner)
+        before = text[:match.start()]
+        return "" if flag and flag.group(0) in before else match.group(0)
+
+    return _CLI_ASIDE.sub(aside, text)
+
+
+# API names in hints that have a command-line spelling
+_PHRASES = (("with Record.crop", "with --t-start/--t-end (or FILE@T0:T1)"),
+            ("(Record.crop)", "(--t-start/--t-end, or FILE@T0:T1)"))
+_CLI_ASIDE = re.compile(r"\s*\(CLI:?\s*([^()]*)\)")

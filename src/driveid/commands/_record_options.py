@@ -2,24 +2,30 @@
 
 ``@record_options`` adds ``--time --position --velocity --force`` (column name, 0-based index
 or ``VAR:INDEX``), ``--fs``, ``--t-start``, ``--t-end``, ``--max-jitter``, ``--scale COL=F``,
-``--unit COL=UNIT``, ``--counts-per-rev`` and ``--counts-per-metre`` to a click command and
-passes one :class:`RecordOptions` to the callback as ``record_opts``. ``record_opts.read(spec)``
-reads one file (``file.csv@12.5:40`` keeps its own window) with the same keywords as
-:func:`driveid.io.read_record`.
+``--unit COL=UNIT``, ``--counts-per-rev``, ``--counts-per-metre`` and ``--sign-magnitude
+COL:BITS`` to a click command and passes one :class:`RecordOptions` to the callback as
+``record_opts``. ``record_opts.read(spec)`` reads one file (``file.csv@12.5:40`` keeps its
+own window) with the same keywords as :func:`driveid.io.read_record`, and prints the reading's
+notes (a column chosen by convention, a unit assumed) as ``note: ...`` lines on stderr.
+:meth:`RecordOptions.from_reading` rebuilds the options stored in a result's ``inputs``
+(``validate`` and ``report`` reuse them).
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import click
 
-__all__ = ["RecordOptions", "record_options", "split_window_spec"]
+from driveid.commands._output import cli_text
+
+__all__ = ["RecordOptions", "record_options", "split_window_spec", "show_notes",
+           "reading_as_cli"]
 
 
 @dataclass(frozen=True)
@@ -44,6 +50,8 @@ class RecordOptions:
         Record column -> unit string stating or overriding the file's unit.
     counts_per_rev, counts_per_metre : float or None
         Encoder resolution for positions given in counts [counts/rev, counts/m].
+    sign_magnitude : dict
+        Record column -> register width [bits] of a sign-magnitude integer column.
     """
 
     columns: dict[str, str] = field(default_factory=dict)
@@ -54,8 +62,9 @@ class RecordOptions:
     units: dict[str, str] = field(default_factory=dict)
     counts_per_rev: float | None = None
     counts_per_metre: float | None = None
+    sign_magnitude: dict[str, int] = field(default_factory=dict)
 
-    def read(self, spec: str | Path) -> Any:
+    def read(self, spec: str | Path, *, position: bool = True, notes: bool = True) -> Any:
         """Read one file, ``PATH`` or ``PATH@T0:T1`` (either bound may be empty) [s].
 
         Parameters
@@ -63,6 +72,10 @@ class RecordOptions:
         spec : str or Path
             The file, optionally with its own window; a file's window wins over
             ``--t-start``/``--t-end``.
+        position : bool
+            False accepts a speed-only file, for a command that uses no position.
+        notes : bool
+            Print the reading's notes as ``note: FILE: ...`` lines on stderr.
 
         Returns
         -------
@@ -74,9 +87,43 @@ class RecordOptions:
         path, window = split_window_spec(spec)
         if window == (None, None):
             window = self.window
-        record = read_record(path, **self.read_kwargs(window))
+        record = read_record(path, position=position, **self.read_kwargs(window))
         _check_magnitudes(record, path)
+        if notes:
+            show_notes(path, record.meta.get("notes", ()))
         return record
+
+    @classmethod
+    def from_reading(cls, reading: Mapping[str, Any]) -> RecordOptions:
+        """Rebuild the options stored as ``inputs[k]["reading"]`` of a result.
+
+        Parameters
+        ----------
+        reading : mapping
+            ``columns``, ``fs`` [Hz], ``max_jitter`` [-], ``scale``, ``units``,
+            ``counts_per_rev`` [1/rev], ``counts_per_metre`` [1/m], ``sign_magnitude``
+            [bits], each optional.
+
+        Returns
+        -------
+        RecordOptions
+            The options (no window: a result's window is not reused).
+        """
+        known = {"columns", "fs", "max_jitter", "scale", "units", "counts_per_rev",
+                 "counts_per_metre", "sign_magnitude"}
+        kwargs = {k: (dict(v) if isinstance(v, Mapping) else v)
+                  for k, v in reading.items() if k in known}
+        return cls(**kwargs)
+
+    def is_default(self) -> bool:
+        """Return True when no reading option was given (every field at its default).
+
+        Returns
+        -------
+        bool
+            True for ``RecordOptions()``.
+        """
+        return self == RecordOptions()
 
     def read_all(self, specs: Sequence[str | Path]) -> list[Any]:
         """Read several files, each with its own window.
@@ -133,6 +180,8 @@ class RecordOptions:
             kwargs["counts_per_rev"] = self.counts_per_rev
         if self.counts_per_metre is not None:
             kwargs["counts_per_metre"] = self.counts_per_metre
+        if self.sign_magnitude:
+            kwargs["sign_magnitude"] = dict(self.sign_magnitude)
         return kwargs
 
 
@@ -164,6 +213,61 @@ def _check_magnitudes(record: Any, path: Path) -> None:
             f"{'overflow' if size == 'above' else 'underflow'}); check the column's unit "
             f"(--unit {col}=UNIT) or rescale it (--scale {col}=F), e.g. "
             f"--scale {col}=1e{exponent}")
+
+
+def reading_as_cli(reading: Mapping[str, Any]) -> str:
+    """Return stored reading options as the command-line options that give them.
+
+    Parameters
+    ----------
+    reading : mapping
+        ``inputs[k]["reading"]`` of a result (see :meth:`RecordOptions.from_reading`).
+
+    Returns
+    -------
+    str
+        E.g. ``--position 'pos (3)' --unit x=m --max-jitter none``; empty for defaults.
+
+    Examples
+    --------
+    >>> reading_as_cli({"columns": {"x": "q2"}, "units": {"x": "m"}, "max_jitter": None})
+    '--position q2 --max-jitter none --unit x=m'
+    """
+    import shlex
+
+    words: list[str] = []
+    flags = {"t": "--time", "x": "--position", "v": "--velocity", "u": "--force"}
+    for col, spec in dict(reading.get("columns") or {}).items():
+        words += [flags.get(col, f"--{col}"), shlex.quote(str(spec))]
+    if reading.get("fs") is not None:
+        words += ["--fs", f"{reading['fs']:g}"]
+    if "max_jitter" in reading:
+        jitter = reading["max_jitter"]
+        words += ["--max-jitter", "none" if jitter is None else f"{jitter:g}"]
+    for key, flag in (("scale", "--scale"), ("units", "--unit")):
+        for col, value in dict(reading.get(key) or {}).items():
+            words += [flag, shlex.quote(f"{col}={value}")]
+    for key, flag in (("counts_per_rev", "--counts-per-rev"),
+                      ("counts_per_metre", "--counts-per-metre")):
+        if reading.get(key) is not None:
+            words += [flag, f"{reading[key]:g}"]
+    for col, bits in dict(reading.get("sign_magnitude") or {}).items():
+        words += ["--sign-magnitude", f"{col}:{bits}"]
+    return " ".join(words)
+
+
+def show_notes(path: str | Path, notes: Sequence[str]) -> None:
+    """Print the notes of a reading as ``note: FILE: ...`` on stderr.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file read.
+    notes : sequence of str
+        ``record.meta["notes"]``.
+    """
+    for note in dict.fromkeys(notes):
+        click.echo(f"note: {Path(path).name}: {note}", err=True)
 
 
 def split_window_spec(spec: str | Path) -> tuple[Path, tuple[float | None, float | None]]:
@@ -263,6 +367,10 @@ def record_options(func: Callable[..., Any]) -> Callable[..., Any]:
                      help="Encoder counts per revolution, for positions in counts."),
         click.option("--counts-per-metre", "opt_counts_per_metre", type=float, default=None,
                      help="Encoder counts per metre, for positions in counts."),
+        click.option("--sign-magnitude", "opt_sign_magnitude", multiple=True,
+                     metavar="COL:BITS",
+                     help="Decode a column stored as sign-magnitude integers (top bit the "
+                          "sign), e.g. x:16; repeatable."),
     ]
 
     @functools.wraps(func)
@@ -270,7 +378,7 @@ def record_options(func: Callable[..., Any]) -> Callable[..., Any]:
         try:
             kwargs["record_opts"] = _build(kwargs)
         except click.BadParameter as exc:
-            click.echo(f"error: {exc.format_message()}", err=True)
+            click.echo(f"error: {cli_text(exc.format_message())}", err=True)
             raise SystemExit(2) from None
         return func(*args, **kwargs)
 
@@ -311,4 +419,21 @@ def _build(kwargs: dict[str, Any]) -> RecordOptions:
         units=_pairs(kwargs.pop("opt_unit"), "--unit"),
         counts_per_rev=kwargs.pop("opt_counts_per_rev"),
         counts_per_metre=kwargs.pop("opt_counts_per_metre"),
+        sign_magnitude=_bits(kwargs.pop("opt_sign_magnitude")),
     )
+
+
+def _bits(values: Sequence[str]) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for item in values:
+        key, sep, value = item.replace("=", ":").partition(":")
+        try:
+            bits = int(value)
+        except ValueError:
+            bits = 0
+        if not sep or not key.strip() or not 2 <= bits <= 64:
+            raise click.BadParameter(
+                f"--sign-magnitude takes COL:BITS with 2 to 64 bits, e.g. --sign-magnitude "
+                f"x:16; got {item!r}")
+        out[_column(key.strip(), "--sign-magnitude")] = bits
+    return out

@@ -22,12 +22,15 @@ def fleet_group():
 
 @fleet_group.command("identify")
 @click.argument("patterns", nargs=-1, required=True)
-@click.option("--method", type=click.Choice(["logdec", "output-error"]), default="logdec",
-              show_default=True, help="Estimator run on every record.")
+@click.option("--method", type=click.Choice(["output-error", "logdec"]),
+              default="output-error", show_default=True,
+              help="Estimator run on every record: output-error, the whole-record fit that "
+                   "'identify logdec' runs (near the Cramér-Rao bound); logdec, the peak log "
+                   "decrement ('identify logdec --method peaks').")
 @click.option("--mass", "--J", "mass", type=float, default=None,
-              help="Known mass or inertia J [kg or kg·m²] (logdec).")
+              help="Known mass or inertia J [kg or kg·m²].")
 @click.option("--stiffness", "--K", "stiffness", type=float, default=None,
-              help="Known stiffness K [N/m or N·m/rad] (logdec).")
+              help="Known stiffness K [N/m or N·m/rad].")
 @click.option("--machine-from-path", "path_pattern", default="{machine}/{axis}/{time}",
               show_default=True,
               help="How machine, axis and time are read from each path's last components: "

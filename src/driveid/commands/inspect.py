@@ -20,6 +20,9 @@ _WORDS = {"t": "time", "x": "position", "v": "velocity", "u": "force"}
 def describe_reading(spec: str, record_opts: RecordOptions) -> dict:
     """Read a file as an identify command would and describe the reading.
 
+    A file without a position column (a force-only logger, a speed-only drive log) is
+    described too: what it holds, and that identify commands need a position.
+
     Parameters
     ----------
     spec : str
@@ -34,24 +37,47 @@ def describe_reading(spec: str, record_opts: RecordOptions) -> dict:
         ``jitter`` [-], ``max_jitter``, ``accepted``, ``window`` [s], ``columns`` (every
         column found: ``index``, ``name``, ``unit``), ``chosen`` (record column -> file
         column), ``units_in_file``, ``units`` (SI), ``notes`` (preamble lines such as
-        ``Device: ...``), and per chosen quantity ``t``, ``x``,
-        ``v``, ``u``: ``{"column", "min", "max", "unit", "unit_in_file"}`` in SI.
+        ``Device: ...``), ``reading_notes`` (columns chosen by convention, units assumed),
+        ``position`` (``"column"``, ``"integrated velocity"`` or ``None``), and per chosen
+        quantity ``t``, ``x``, ``v``, ``u``: ``{"column", "min", "max", "unit",
+        "unit_in_file"}`` in SI.
     """
+    from driveid.commands._record_options import split_window_spec
+    from driveid.io.reading import convert_table, file_sha256
     from driveid.io.tables import read_table
 
+    path, window = split_window_spec(spec)
+    if window == (None, None):
+        window = record_opts.window
     lenient = dataclasses.replace(record_opts, max_jitter=None)
-    record = lenient.read(spec)
-    meta = dict(record.meta)
-    table = read_table(meta["source"])
-    jitter = record.jitter()
+    table = read_table(path)
+    kwargs = lenient.read_kwargs(window)
+    arrays, meta = convert_table(table, source=str(path), sha256=file_sha256(path),
+                                 require=(), **kwargs)
+    position: str | None = "column" if "x" in arrays else None
+    if "x" in arrays or "v" in arrays:
+        record = lenient.read(spec, position=False, notes=False)
+        meta = dict(record.meta)
+        values = {c: np.asarray(getattr(record, c)) for c in record.columns}
+        units = {c: record.units[c] for c in record.columns}
+        t = record.t
+        if "derived" in meta:
+            position = "integrated velocity"
+    else:
+        values = arrays
+        units = {**meta["units"], "t": "s"}
+        t = arrays["t"]
+    dt = np.diff(t)
+    nominal = float(np.median(dt)) if dt.size else float("nan")
+    jitter = float(np.max(np.abs(dt - nominal)) / nominal) if dt.size else 0.0
     limit = record_opts.max_jitter
     out = {
         "path": meta["source"],
         "sha256": meta.get("sha256"),
         "format": meta.get("format"),
         "rows": meta.get("rows"),
-        "samples": record.n,
-        "fs": record.fs,
+        "samples": int(t.size),
+        "fs": float(round(1.0 / nominal, 9)) if dt.size else None,
         "jitter": jitter,
         "max_jitter": limit,
         "accepted": limit is None or jitter <= limit,
@@ -60,16 +86,18 @@ def describe_reading(spec: str, record_opts: RecordOptions) -> dict:
                     for i, name in enumerate(table.columns)],
         "chosen": dict(meta.get("columns_used", {})),
         "units_in_file": dict(meta.get("units_in_file", {})),
-        "units": {c: record.units[c] for c in record.columns},
+        "units": units,
         "scale": dict(meta.get("scale", {})),
         "notes": dict(table.notes),
+        "reading_notes": list(meta.get("notes", [])),
+        "position": position,
     }
     if "fs_given" in meta:
         out["chosen"]["t"] = f"k/fs with fs = {meta['fs_given']:g} Hz"
-    for col in record.columns:
-        values = np.asarray(getattr(record, col))
-        out[col] = {"column": out["chosen"].get(col, "derived"), "min": float(values.min()),
-                    "max": float(values.max()), "unit": record.units[col],
+    for col, vals in values.items():
+        default = "derived" if col != "x" or position == "column" else "integrated velocity"
+        out[col] = {"column": out["chosen"].get(col, default), "min": float(vals.min()),
+                    "max": float(vals.max()), "unit": units.get(col, ""),
                     "unit_in_file": out["units_in_file"].get(col)}
     return out
 
@@ -93,7 +121,7 @@ def inspect_command(file, record_opts, as_json):
     click.echo(f"rows: {info['rows']} in the file, {info['samples']} kept; window "
                f"{info['window'][0]:.6g}..{info['window'][1]:.6g} s")
     verdict = "accepted" if info["accepted"] else (
-        f"refused by --max-jitter {info['max_jitter']} (pass --max-jitter none, or a larger "
+        f"refused by --max-jitter {info['max_jitter']} (give --max-jitter none, or a larger "
         "fraction)")
     click.echo(f"sample rate: {info['fs']:.6g} Hz; jitter {100 * info['jitter']:.3g} % "
                f"({verdict})")
@@ -110,5 +138,14 @@ def inspect_command(file, record_opts, as_json):
                        f"{q['min']:>12.6g} {q['max']:>12.6g}")
     for key, value in list(info["notes"].items())[:10]:
         click.echo(f"preamble: {key}: {value}")
+    for note in info["reading_notes"]:
+        click.echo(f"note: {note}")
+    if info["position"] is None:
+        click.echo("position: none in this file; commands that need a position (the "
+                   "identify commands) refuse it; choose one with --position COL if it is "
+                   "named otherwise")
+    elif info["position"] == "integrated velocity":
+        click.echo("position: none in this file; commands that use only the velocity read "
+                   "it, with the position integrated from the velocity")
     if info["scale"]:
         click.echo("scaled: " + ", ".join(f"{k} x {v:g}" for k, v in info["scale"].items()))

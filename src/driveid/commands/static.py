@@ -144,7 +144,7 @@ def step_command(file, band, settle_fraction, record_opts, output_opts):
     """ζ and ω0 from the steps of a DC-biased square-wave test in FILE (command in u)."""
     from driveid.identify.static_tests import estimate_step_response
 
-    record = record_opts.read(file)
+    record = record_opts.read(file, position=False)  # a speed-only drive log will do
     est = estimate_step_response(record, band=band, settle_fraction=settle_fraction)
     emit(est, output_opts, records=[record], figure=lambda: _step_figure(est, record),
          header=f"method: {est.method}   steps: {est.diagnostics['n_steps']}")

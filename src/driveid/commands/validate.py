@@ -9,7 +9,8 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._record_options import record_options
+from driveid.commands._output import cli_text
+from driveid.commands._record_options import RecordOptions, record_options
 from driveid.errors import FileFormatError, IdentificationError
 
 __all__ = ["validate_command"]
@@ -52,6 +53,53 @@ def _index_of(record, estimate, position: int, n_files: int):
     return None
 
 
+def _stored_reading(path: Path, estimate, position: int, n_files: int) -> dict | None:
+    """Return the reading options stored in the result for this file, or None."""
+    from driveid.io.reading import file_sha256
+
+    inputs = [dict(i) for i in estimate.inputs]
+    if not any(i.get("reading") for i in inputs):
+        return None
+    try:
+        digest = file_sha256(path)
+    except OSError:
+        digest = None
+    for item in inputs:
+        if digest and item.get("sha256") == digest:
+            return dict(item.get("reading") or {})
+    for item in inputs:
+        if item.get("path") and Path(str(item["path"])).name == path.name:
+            return dict(item.get("reading") or {})
+    if len(inputs) == n_files:
+        return dict(inputs[position].get("reading") or {})
+    readings = {json.dumps(i.get("reading") or {}, sort_keys=True) for i in inputs}
+    return json.loads(readings.pop()) if len(readings) == 1 else None
+
+
+def _read_as_estimated(files, estimate, record_opts: RecordOptions, result: Path) -> list:
+    """Read FILEs with the reading options stored in the result, unless options are given."""
+    import dataclasses
+
+    from driveid.commands._record_options import reading_as_cli, split_window_spec
+    from driveid.io.consistency import warn_duplicates
+
+    if not dataclasses.replace(record_opts, window=(None, None)).is_default():
+        return record_opts.read_all(files)  # options given: they win
+    records = []
+    for k, spec in enumerate(files):
+        path, _ = split_window_spec(spec)
+        reading = _stored_reading(path, estimate, k, len(files))
+        opts = record_opts
+        if reading:  # the stored reading, in the window asked for (--t-start, FILE@T0:T1)
+            opts = dataclasses.replace(RecordOptions.from_reading(reading),
+                                       window=record_opts.window)
+            click.echo(f"note: {path.name}: read with the options stored in {result.name}: "
+                       f"{reading_as_cli(reading)}", err=True)
+        records.append(opts.read(spec))
+    warn_duplicates(records)
+    return records
+
+
 @click.command("validate")
 @click.argument("result", type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]...")
@@ -73,12 +121,14 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
     friction-map identification. Each FILE is simulated with its own input u and initial
     state: a PHO run in its PD loop (gains P, D and release x0 from the file's meta line),
     a forced, IDIM or friction-map run driven by its u. A FILE the estimate was not
-    computed from is held out, and its residual rms is the prediction error.
+    computed from is held out, and its residual rms is the prediction error. Without
+    reading options, each FILE is read with the options stored in RESULT.json (its
+    columns, units, scales, --max-jitter), as the identification read it.
     """
     from driveid.validate import compare
 
     estimate = _load_estimate(result)
-    records = record_opts.read_all(files)
+    records = _read_as_estimated(files, estimate, record_opts, result)
     comparisons = []
     for k, record in enumerate(records):
         index = _index_of(record, estimate, k, len(records))
@@ -105,7 +155,7 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
         save_figure(fig, figure, overwrite=overwrite)
     for spec, c in zip(files, comparisons, strict=True):
         for message in c.warnings:
-            click.echo(f"warning: {spec}: {message}", err=True)
+            click.echo(f"warning: {spec}: {cli_text(message)}", err=True)
     fits = [c.fit for c in comparisons]
     n_total = sum(c.t.size for c in comparisons)
     rms = math.sqrt(sum(c.residual_rms**2 * c.t.size for c in comparisons) / n_total)

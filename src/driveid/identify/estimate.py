@@ -421,8 +421,10 @@ def inputs_of(records: Sequence[Any]) -> list[dict[str, Any]]:
     -------
     list of dict
         One ``{"path", "sha256", "rows", "columns", "window", "units", "units_in_file"}``
-        per record; ``columns`` maps record column -> file column, ``window`` is the time
-        span used [s], ``units`` the SI units after conversion.
+        per record (and ``reading``, the reading options that differ from the defaults, and
+        ``notes``, the choices the reading made: a column by convention, a unit assumed);
+        ``columns`` maps record column -> file column, ``window`` is the time span used
+        [s], ``units`` the SI units after conversion.
     """
     out = []
     for record in records:
@@ -437,6 +439,10 @@ def inputs_of(records: Sequence[Any]) -> list[dict[str, Any]]:
             "units": {c: record.units[c] for c in record.columns if c in record.units},
             "units_in_file": dict(meta.get("units_in_file") or {}),
         })
+        if meta.get("reading"):  # the reading options, so validate/report read it alike
+            out[-1]["reading"] = dict(meta["reading"])
+        if meta.get("notes"):  # columns chosen by convention, units assumed
+            out[-1]["notes"] = list(meta["notes"])
     return out
 
 

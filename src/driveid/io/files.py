@@ -134,6 +134,8 @@ def read_record(
     units: Mapping[str, str] | None = None,
     counts_per_rev: float | None = None,
     counts_per_metre: float | None = None,
+    sign_magnitude: Mapping[str, int] | None = None,
+    position: bool = True,
 ) -> Record:
     """Read a record from any supported file (see :func:`driveid.io.reading.read_record`).
 
@@ -159,11 +161,16 @@ def read_record(
         Encoder counts per revolution [1/rev], for positions in counts.
     counts_per_metre : float, optional
         Encoder counts per metre [1/m], for positions in counts.
+    sign_magnitude : mapping, optional
+        Record column -> register width [bits] of a sign-magnitude integer column.
+    position : bool
+        False accepts a speed-only file (position integrated from the velocity).
 
     Returns
     -------
     Record
-        The validated record in SI units, provenance in ``meta``.
+        The validated record in SI units, provenance in ``meta``; ``meta["notes"]`` shows
+        each column chosen by convention and each unit assumed.
 
     Raises
     ------
@@ -178,4 +185,5 @@ def read_record(
 
     return _read(path, columns=columns, fs=fs, window=window, max_jitter=max_jitter,
                  scale=scale, units=units, counts_per_rev=counts_per_rev,
-                 counts_per_metre=counts_per_metre, record_type=Record)
+                 counts_per_metre=counts_per_metre, sign_magnitude=sign_magnitude,
+                 position=position, record_type=Record)

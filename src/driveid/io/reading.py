@@ -29,11 +29,13 @@ from typing import Any
 import numpy as np
 
 from driveid.errors import FileFormatError
+from driveid.io.registers import decode_sign_magnitude, sign_magnitude_suspect
 from driveid.io.tables import Table, read_table
 from driveid.io.units import split_header, to_si
 
-__all__ = ["read_record", "record_from_table", "parse_scale", "COLUMN_ALIASES",
-           "OPTION_OF_COLUMN", "file_sha256", "choose_columns"]
+__all__ = ["read_record", "record_from_table", "convert_table", "parse_scale",
+           "COLUMN_ALIASES", "OPTION_OF_COLUMN", "file_sha256", "choose_columns",
+           "decode_sign_magnitude"]
 
 #: Record column -> names (lower case) found automatically in a file.
 COLUMN_ALIASES: dict[str, tuple[str, ...]] = {
@@ -48,7 +50,8 @@ OPTION_OF_COLUMN = {"t": "--time", "x": "--position", "v": "--velocity", "u": "-
 _WORDS = {"t": "time", "x": "position", "v": "velocity", "u": "force"}
 # provenance of an earlier reading, stale in a file driveid wrote from a read record
 _PROVENANCE = ("source", "sha256", "rows", "columns", "columns_used", "window", "format",
-               "units_in_file", "scale", "fs_given", "window_requested", "resampled")
+               "units_in_file", "scale", "fs_given", "window_requested", "resampled",
+               "notes", "reading", "derived")
 
 
 def file_sha256(path: str | Path) -> str:
@@ -82,6 +85,8 @@ def read_record(
     units: Mapping[str, str] | None = None,
     counts_per_rev: float | None = None,
     counts_per_metre: float | None = None,
+    sign_magnitude: Mapping[str, int] | None = None,
+    position: bool = True,
     record_type: Callable[..., Any],
 ) -> Any:
     """Read a record from any supported file, in SI units, with its provenance.
@@ -114,6 +119,12 @@ def read_record(
         Encoder counts per revolution [1/rev], for positions in ``counts``.
     counts_per_metre : float, optional
         Encoder counts per metre [1/m], for positions in ``counts``.
+    sign_magnitude : mapping, optional
+        Record column -> register width [bits] of a column stored as sign-magnitude
+        integers (``{"x": 16}``); such a column read without it is flagged by a warning.
+    position : bool
+        False accepts a file without a position column when it has a velocity (the
+        position is then the integrated velocity, ``meta["derived"]``).
     record_type : type
         :class:`driveid.io.Record` (passed in, so that this module stays below
         ``record.py`` in the import order; :func:`driveid.io.read_record` passes it).
@@ -145,20 +156,21 @@ def read_record(
         table, source=str(path), sha256=file_sha256(path), columns=columns, fs=fs,
         window=window, max_jitter=max_jitter, scale=scale, units=units,
         counts_per_rev=counts_per_rev, counts_per_metre=counts_per_metre,
-        record_type=record_type, owned=True)
+        sign_magnitude=sign_magnitude, position=position, record_type=record_type,
+        owned=True)
 
 
 def choose_columns(table: Table, columns: Mapping[str, str | int] | None = None, *,
                    source: str = "") -> dict[str, str]:
-    """Return record column -> file column name, from explicit choices and aliases.
+    """Return record column -> file column name, from explicit choices and conventions.
 
     Parameters
     ----------
     table : Table
         The columns of a file.
     columns : mapping, optional
-        Explicit choices (name, 0-based index or ``VAR:INDEX``); ``"none"`` ignores that
-        quantity even where a column is named like it.
+        Explicit choices (full name, 0-based index or ``VAR:INDEX``); ``"none"`` ignores
+        that quantity even where a column is named like it.
     source : str
         File name for messages.
 
@@ -170,8 +182,20 @@ def choose_columns(table: Table, columns: Mapping[str, str | int] | None = None,
     Raises
     ------
     FileFormatError
-        If an explicit choice names no column of the file.
+        If an explicit choice names no column, or a name fits several columns (all such
+        problems of the file in one message, the candidates listed).
     """
+    chosen, _, problems = _choose(table, columns)
+    if problems:
+        raise FileFormatError(_joined(source or "the file", problems))
+    return chosen
+
+
+def _choose(table: Table, columns: Mapping[str, str | int] | None
+            ) -> tuple[dict[str, str], list[str], list[str]]:
+    """Return the chosen columns, the notes showing each non-obvious choice, the problems."""
+    from driveid.io.columns import parse_column_name, rank_candidates
+
     mapping = dict(columns or {})
     unknown = set(mapping) - set(COLUMN_ALIASES)
     if unknown:
@@ -179,57 +203,126 @@ def choose_columns(table: Table, columns: Mapping[str, str | int] | None = None,
             f"columns mapping has unknown record column(s) {sorted(unknown)}; map only t, x, "
             "v, u (time, position, velocity, force)")
     chosen: dict[str, str] = {}
+    notes: list[str] = []
+    problems: list[str] = []
     ignored = {col for col, spec in mapping.items() if str(spec).strip().lower() == "none"}
     for col, spec in mapping.items():
         if spec is not None and str(spec).strip() != "" and col not in ignored:
-            chosen[col] = _resolve(table, spec, col, source)
-    for col in COLUMN_ALIASES:
-        if col not in chosen and col not in ignored:
-            name = _by_alias(table, col, set(chosen.values()))
-            if name is not None:
+            name, problem = _resolve(table, spec, col)
+            if problem:
+                problems.append(problem)
+            else:
                 chosen[col] = name
-    return chosen
+    joint = next((parse_column_name(chosen[c]).joint for c in ("x", "v", "u")
+                  if c in chosen and parse_column_name(chosen[c]).quantity), None)
+    for col in ("x", "v", "u", "t"):  # position first: velocity and force follow its joint
+        if col in chosen or col in ignored or str(mapping.get(col) or "").strip():
+            continue  # chosen, ignored, or asked for (and then reported if not found)
+        free = [n for n in table.columns if n not in chosen.values()]
+        top, passed = rank_candidates(free, col, joint=None if col == "t" else joint)
+        if len(top) > 1:
+            listed = ", ".join(repr(c.name) for c in top)
+            if col in ("v", "u"):  # optional: left out, and said so
+                notes.append(
+                    f"{len(top)} columns could be the {_WORDS[col]}: {listed}; none is used: "
+                    f"choose one with {OPTION_OF_COLUMN[col]} COL")
+                continue
+            problems.append(
+                f"{len(top)} columns could be the {_WORDS[col]}: {listed}; choose one with "
+                f"{OPTION_OF_COLUMN[col]} COL (full name or 0-based index)")
+            continue
+        if not top:
+            top = _by_unit(table, free, col)  # a nameless column with a telling unit
+            if len(top) > 1:
+                problems.append(
+                    f"{len(top)} columns are in units of a {_WORDS[col]}: "
+                    f"{', '.join(repr(c.name) for c in top)}; choose one with "
+                    f"{OPTION_OF_COLUMN[col]} COL")
+                continue
+            if top:
+                chosen[col] = top[0].name
+                notes.append(
+                    f"read column {top[0].name!r} as the {_WORDS[col]} (its unit "
+                    f"{table.units[top[0].name]}); {OPTION_OF_COLUMN[col]} COL chooses another")
+            continue
+        pick = top[0]
+        chosen[col] = pick.name
+        if col != "t" and joint is None and pick.joint is not None and pick.convention:
+            joint = pick.joint
+        why = []
+        if pick.convention:  # q, dq, qd, tau, a joint number: shown, never silent
+            why.append("robot/servo naming convention")
+        if pick.role != "plain":
+            why.append(pick.role_words)
+        if passed:
+            why.append("passed over: " + ", ".join(
+                f"{c.name!r} ({c.role_words})" for c in passed[:6]))
+        if why:
+            notes.append(
+                f"read column {pick.name!r} as the {_WORDS[col]} ({'; '.join(why) or 'name'})"
+                f"; {OPTION_OF_COLUMN[col]} COL chooses another"
+                + ("" if col in ("t", "x") else f", {OPTION_OF_COLUMN[col]} none ignores it"))
+        if col == "v" and pick.name.lower().startswith("qd"):
+            notes.append(
+                f"{pick.name!r} is read as joint velocity (q-dot); if it is the desired "
+                "position, give --velocity none")
+    return chosen, notes, problems
 
 
-def _resolve(table: Table, spec: str | int, col: str, source: str) -> str:
+def _by_unit(table: Table, free: list[str], col: str) -> list[Any]:
+    """Columns whose name says nothing but whose unit belongs to one quantity only."""
+    from driveid.io.columns import parse_column_name
+    from driveid.io.units import UNIT_CONVERSIONS
+
+    out = []
+    for name in free:
+        parsed = parse_column_name(name)
+        if parsed.quantity is None and table.units.get(name) in UNIT_CONVERSIONS[col]:
+            out.append(parsed)
+    return out
+
+
+def _joined(source: str, problems: list[str]) -> str:
+    """One message for every column and unit problem of a file."""
+    if len(problems) == 1:
+        return f"{source}: {problems[0]}"
+    return f"{source}: {len(problems)} problems: " + " ".join(
+        f"({k}) {p}" for k, p in enumerate(problems, 1))
+
+
+def _resolve(table: Table, spec: str | int, col: str) -> tuple[str, str | None]:
+    from driveid.io.columns import matching_names
+
     names = list(table.columns)
     text = str(spec).strip()
     if isinstance(spec, int) or re.fullmatch(r"\d+", text):
         index = int(text)
+        if text in table.columns and index >= len(names):
+            return text, None
         if index < len(names):
-            return names[index]
+            return names[index], None
     else:
-        if text in table.columns:
-            return text
-        lowered = {n.lower(): n for n in names}
-        for candidate in (text, split_header(text)[0]):
-            if candidate.lower() in lowered:
-                return lowered[candidate.lower()]
-    raise FileFormatError(
-        f"{source or 'the file'} has no column {text!r} for the {_WORDS[col]} "
-        f"({OPTION_OF_COLUMN[col]}); columns found: {_listing(names)}; choose one by name, "
-        "0-based index, or VAR:INDEX for a column of a matrix (driveid inspect FILE lists "
-        "them)")
+        found = matching_names(names, text, table.repeated)
+        if not found:
+            base = split_header(text)[0]
+            if base != text:  # the header with its unit: 'x [mm]'
+                found = matching_names(names, base, table.repeated)
+        if len(found) == 1:
+            return found[0], None
+        if found:
+            where = ", ".join(f"[{names.index(n)}] {n!r}" for n in found)
+            return "", (
+                f"{text!r} for the {_WORDS[col]} ({OPTION_OF_COLUMN[col]}) fits "
+                f"{len(found)} columns: {where}; give the full name or the 0-based index")
+    return "", (
+        f"no column {text!r} for the {_WORDS[col]} ({OPTION_OF_COLUMN[col]}); columns "
+        f"found: {_listing(names)}; choose one by full name, 0-based index, or VAR:INDEX "
+        "for a column of a matrix (driveid inspect FILE lists them)")
 
 
 def _listing(names: list[str], limit: int = 30) -> str:
     shown = ", ".join(f"[{i}] {n}" for i, n in enumerate(names[:limit]))
     return shown + (f" ... ({len(names)} in all)" if len(names) > limit else "")
-
-
-def _by_alias(table: Table, col: str, taken: set[str]) -> str | None:
-    aliases = COLUMN_ALIASES[col]
-    exact, token = None, None
-    for name in table.columns:
-        if name in taken:
-            continue
-        leaf = re.split(r"[./]", name)[-1].lower()
-        if leaf in aliases and exact is None:
-            exact = name
-        first = re.split(r"[\s_&]+", leaf)[0]
-        if first in aliases and token is None and first != leaf:
-            token = name
-    return exact if exact is not None else token
 
 
 _OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
@@ -271,9 +364,13 @@ def parse_scale(text: str | float, scalars: Mapping[str, float] | None = None) -
             value = float(_evaluate(tree.body, scalars))
         except (SyntaxError, ValueError, ZeroDivisionError, KeyError, TypeError) as exc:
             names = f"; scalar variables of the file: {sorted(scalars)}" if scalars else ""
+            why = "division by zero" if isinstance(exc, ZeroDivisionError) else (
+                "a syntax error" if isinstance(exc, SyntaxError) else
+                "a name that is no scalar variable of the file or an operation other than "
+                "+ - * /")
             raise FileFormatError(
                 f"scale {text!r} is not a number or an expression of numbers with + - * / "
-                f"and parentheses, e.g. 0.02/60{names} ({exc})") from None
+                f"and parentheses, e.g. 0.02/60{names}; it has {why}") from None
     if not (math.isfinite(value) and value != 0.0):
         raise FileFormatError(f"a scale must be finite and non-zero; got {text!r}")
     return value
@@ -306,6 +403,8 @@ def record_from_table(
     units: Mapping[str, str] | None = None,
     counts_per_rev: float | None = None,
     counts_per_metre: float | None = None,
+    sign_magnitude: Mapping[str, int] | None = None,
+    position: bool = True,
     record_type: Callable[..., Any],
     owned: bool = False,
 ) -> Any:
@@ -321,6 +420,13 @@ def record_from_table(
         Hash of the file's bytes, kept as ``meta["sha256"]``.
     columns, fs, window, max_jitter, scale, units, counts_per_rev, counts_per_metre
         As in :func:`read_record` [Hz, s, -, -, -, 1/rev, 1/m].
+    sign_magnitude : mapping, optional
+        Record column -> register width [bits] of a column stored as a sign-magnitude
+        integer (the top bit is the sign): decoded before scaling.
+    position : bool
+        False accepts a record without a position column when it has a velocity: the
+        position is then the velocity integrated from 0 (``meta["derived"]``), for
+        analyses that use no position.
     record_type : type
         :class:`driveid.io.Record` (passed in, so that this module stays below
         ``record.py`` in the import order).
@@ -333,17 +439,90 @@ def record_from_table(
     Returns
     -------
     Record
-        The validated record in SI units with provenance in ``meta``.
+        The validated record in SI units with provenance in ``meta``; ``meta["notes"]``
+        shows every choice that was not stated in the file or the options (a column chosen
+        by convention, a unit assumed).
 
     Raises
     ------
     FileFormatError
-        Unknown column, unit or scale; no time and no sample rate.
+        Unknown column, unit or scale; no time and no sample rate (every such problem of
+        the file in one message).
     RecordError
         If the data break a rule of :class:`Record`.
     """
+    arrays, meta = convert_table(
+        table, source=source, sha256=sha256, columns=columns, fs=fs, window=window,
+        max_jitter=max_jitter, scale=scale, units=units, counts_per_rev=counts_per_rev,
+        counts_per_metre=counts_per_metre, sign_magnitude=sign_magnitude,
+        require=("x", "v") if not position else ("x",))
+    if "x" not in arrays:
+        v = arrays["v"]
+        dt = np.diff(arrays["t"])
+        x = np.concatenate(([0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * dt)))
+        arrays["x"] = x
+        meta["units"]["x"] = meta["units"].get("v", "rad/s").split("/")[0]
+        meta["derived"] = {"x": "velocity integrated from 0 (no position column)"}
+        meta["notes"].append("no position column: the position is the velocity integrated "
+                             "from 0, for analyses that use no position")
+    given = {id(c) for c in table.columns.values()}
+    for arr in arrays.values():
+        if (arr.dtype == np.float64 and arr.base is None and arr.flags.writeable
+                and (owned or id(arr) not in given)):
+            arr.setflags(write=False)  # ours alone: the Record may keep it without a copy
+    return record_type(t=arrays["t"], x=arrays["x"], v=arrays.get("v"), u=arrays.get("u"),
+                       meta=meta, max_jitter=max_jitter)
+
+
+def convert_table(
+    table: Table,
+    *,
+    source: str = "",
+    sha256: str | None = None,
+    columns: Mapping[str, str | int] | None = None,
+    fs: float | None = None,
+    window: tuple[float | None, float | None] | None = None,
+    max_jitter: float | None = 0.01,
+    scale: Mapping[str, float | str] | None = None,
+    units: Mapping[str, str] | None = None,
+    counts_per_rev: float | None = None,
+    counts_per_metre: float | None = None,
+    sign_magnitude: Mapping[str, int] | None = None,
+    require: tuple[str, ...] = ("x",),
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Choose, decode, scale, convert and crop the columns of a table, without a Record.
+
+    The steps of :func:`record_from_table` before the :class:`Record` is built; ``driveid
+    inspect`` uses it directly so that a force-only or speed-only file can be described.
+
+    Parameters
+    ----------
+    table : Table
+        Columns read from a file or a DataFrame.
+    source, sha256, columns, fs, window, max_jitter, scale, units, counts_per_rev
+        As in :func:`record_from_table` [-, -, -, Hz, s, -].
+    counts_per_metre, sign_magnitude
+        As in :func:`record_from_table` [1/m, bits].
+    require : tuple of str
+        Record columns of which at least one must be found (``("x",)``: a position;
+        ``()``: any column will do).
+
+    Returns
+    -------
+    tuple of (dict, dict)
+        Record column -> values in SI units, shape (n,) each (``t`` always), and the
+        ``meta`` of the record (provenance, ``units``, ``notes``, ``reading``).
+
+    Raises
+    ------
+    FileFormatError
+        Every column and unit problem of the file, in one message.
+    """
     name = Path(source).name if source else "the data"
-    chosen = choose_columns(table, columns, source=name)
+    chosen, notes, problems = _choose(table, columns)
+    unresolved = {c for c in COLUMN_ALIASES if any(
+        f"the {_WORDS[c]} ({OPTION_OF_COLUMN[c]})" in p or f"could be the {_WORDS[c]}:" in p
+        for p in problems)}  # already reported: no second 'not found' for them
     explicit_time = columns is not None and columns.get("t") not in (None, "")
     if fs is not None:
         if explicit_time:
@@ -352,32 +531,40 @@ def record_from_table(
         if not (math.isfinite(fs) and fs > 0):
             raise FileFormatError(f"fs must be a positive sample rate [Hz]; got {fs}")
         chosen.pop("t", None)
-    if "x" not in chosen:
-        raise FileFormatError(
-            f"{name} has no position column found by name (x, position, pos, ...); columns "
-            f"found: {_listing(list(table.columns))}; choose it with --position COL "
-            "(Python: columns={'x': COL}) by name, 0-based index or VAR:INDEX")
+    ignored = {c for c, spec in dict(columns or {}).items()
+               if str(spec).strip().lower() == "none"}
+    if require and not any(c in chosen or c in unresolved for c in require) and not any(
+            c in dict(columns or {}) and c not in ignored for c in require):
+        words = " or ".join(_WORDS[c] for c in require)
+        problems.append(
+            f"no {words} column found by name (x, position, pos, q ...); columns found: "
+            f"{_listing(list(table.columns))}; choose it with --position COL (Python: "
+            "columns={'x': COL}) by full name, 0-based index or VAR:INDEX"
+            + ("; driveid inspect FILE describes a file without one" if require == ("x",)
+               else ""))
     scales = dict(scale or {})
     overrides = dict(units or {})
-    for option, given in (("scale", scales), ("units", overrides)):
+    signs = dict(sign_magnitude or {})
+    for option, given in (("scale", scales), ("units", overrides),
+                          ("sign_magnitude", signs)):
         unknown = set(given) - set(COLUMN_ALIASES)
         if unknown:
             raise FileFormatError(
                 f"{option} names unknown record column(s) {sorted(unknown)}; use t, x, v or u")
-    arrays = {col: _numeric(table.columns[fname], fname, name) for col, fname in chosen.items()}
     rate = fs if fs is not None else table.fs
-    if "t" not in arrays:
-        if rate is None:
-            raise FileFormatError(
-                f"{name} has no time column found by name (t, time, Zeit, ...); columns found: "
-                f"{_listing(list(table.columns))}; choose it with --time COL, or give the "
-                "sample rate with --fs HZ (Python: columns={'t': COL} or fs=HZ)")
-        n = arrays["x"].size
-        arrays["t"] = table.t0 + np.arange(n) / rate
-    arrays = _trim_missing(arrays, name)
-    file_meta = {k: v for k, v in table.meta.items() if k not in _PROVENANCE}
+    if "t" not in chosen and "t" not in unresolved and rate is None:
+        problems.append(
+            "no time column found by name (t, time, Zeit, ...); choose it with --time COL, "
+            "or give the sample rate with --fs HZ (Python: columns={'t': COL} or fs=HZ)")
+    arrays: dict[str, np.ndarray] = {}
+    for col, fname in chosen.items():
+        try:
+            arrays[col] = _numeric(table.columns[fname], fname, name)
+        except FileFormatError as exc:
+            problems.append(str(exc).removeprefix(f"{name}: "))
     from driveid.io.consistency import check_meta_units
 
+    file_meta = {k: v for k, v in table.meta.items() if k not in _PROVENANCE}
     meta_units = file_meta.pop("units", {}) or {}
     # a header saying 't [ms]' under a meta line saying 's' is an error, never a silent pick
     check_meta_units({col: table.units[fname] for col, fname in chosen.items()
@@ -386,18 +573,40 @@ def record_from_table(
     in_file: dict[str, str] = {}
     si: dict[str, str] = {}
     applied_scale: dict[str, float] = {}
+    unitless: list[str] = []
     for col in ("t", "x", "v", "u"):
         if col not in arrays:
             continue
-        fname = chosen.get(col)
-        file_unit = table.units.get(fname) if fname else None
-        file_unit = file_unit or meta_units.get(col) or ("s" if col == "t" and fname is None
-                                                         else None)
+        fname = chosen[col]
+        if col in signs:
+            try:
+                arrays[col] = decode_sign_magnitude(arrays[col], signs[col])
+            except FileFormatError as exc:
+                problems.append(f"column {fname!r} ({OPTION_OF_COLUMN[col]}): {exc}")
+                continue
+        else:
+            bits = sign_magnitude_suspect(arrays[col])
+            if bits:
+                import warnings
+
+                from driveid.errors import RecordWarning
+
+                warnings.warn(
+                    f"{name}: column {fname!r} looks like a {bits}-bit sign-magnitude "
+                    f"register (small values next to values just above {2 ** (bits - 1)}): "
+                    f"decode it with --sign-magnitude {col}:{bits} (Python: "
+                    f"sign_magnitude={{'{col}': {bits}}}), or check the export",
+                    RecordWarning, stacklevel=4)
+        file_unit = table.units.get(fname) or meta_units.get(col)
         if file_unit:
             in_file[col] = file_unit
         stated = overrides.get(col)
         if col in scales:
-            factor = parse_scale(scales[col], table.scalars)
+            try:
+                factor = parse_scale(scales[col], table.scalars)
+            except FileFormatError as exc:
+                problems.append(str(exc))
+                continue
             applied_scale[col] = factor
             arrays[col] = arrays[col] * factor
             if stated is None:
@@ -406,20 +615,48 @@ def record_from_table(
         else:
             unit = stated or file_unit
         if unit is None:
+            unitless.append(col)
             continue
-        si_unit, factor = to_si(col, unit, source=name, counts_per_rev=counts_per_rev,
-                                counts_per_metre=counts_per_metre)
+        try:
+            si_unit, factor = to_si(col, unit, counts_per_rev=counts_per_rev,
+                                    counts_per_metre=counts_per_metre)
+        except FileFormatError as exc:
+            problems.append(f"{_WORDS[col]} {fname!r}: {exc}")
+            continue
         if factor != 1.0:  # x * 1.0 == x: no 8 B/sample copy of a column already in SI
             arrays[col] = arrays[col] * factor
         si[col] = si_unit
+    if problems:
+        raise FileFormatError(_joined(name, problems))
+    if "t" not in arrays:
+        n = next(iter(arrays.values())).size if arrays else table.rows
+        arrays["t"] = table.t0 + np.arange(n) / rate
+    arrays = _trim_missing(arrays, name)
     _complete_units(si, applied_scale)
+    translational = si.get("x", "").startswith("m") or (
+        "x" not in si and si.get("v", "").startswith("m/"))
+    for col in unitless:
+        assumed = {"t": "s", "x": "m" if translational else "rad",
+                   "v": "m/s" if translational else "rad/s",
+                   "u": "N" if translational else "N·m"}[col]
+        other = {"t": "ms", "x": "m" if assumed == "rad" else "mm",
+                 "v": "m/s" if assumed == "rad/s" else "mm/s",
+                 "u": "N" if assumed == "N·m" else "kN"}[col]
+        notes.append(f"the {_WORDS[col]} column {chosen[col]!r} states no unit: read as "
+                     f"{assumed}; give --unit {col}={other} (or the right unit) if it is "
+                     "another")
     _check_consistent(si, in_file, name)
     t_all = arrays["t"]
     arrays = _crop(arrays, window, name)
     meta = {**file_meta, "units": si, "units_in_file": in_file, "source": source,
             "rows": int(table.rows), "columns": list(table.columns),
             "columns_used": dict(chosen), "format": table.format,
-            "window": [float(arrays["t"][0]), float(arrays["t"][-1])]}
+            "window": [float(arrays["t"][0]), float(arrays["t"][-1])],
+            "notes": notes}
+    reading = _reading_options(columns, fs, max_jitter, scale, units, counts_per_rev,
+                               counts_per_metre, sign_magnitude)
+    if reading:
+        meta["reading"] = reading
     if sha256 is not None:
         meta["sha256"] = sha256
     if applied_scale:
@@ -428,13 +665,31 @@ def record_from_table(
         meta["fs_given"] = float(rate)
     if window is not None and window != (None, None) and t_all.size:
         meta["window_requested"] = [None if w is None else float(w) for w in window]
-    given = {id(c) for c in table.columns.values()}
-    for arr in arrays.values():
-        if (arr.dtype == np.float64 and arr.base is None and arr.flags.writeable
-                and (owned or id(arr) not in given)):
-            arr.setflags(write=False)  # ours alone: the Record may keep it without a copy
-    return record_type(t=arrays["t"], x=arrays["x"], v=arrays.get("v"), u=arrays.get("u"),
-                       meta=meta, max_jitter=max_jitter)
+    return arrays, meta
+
+
+def _reading_options(columns, fs, max_jitter, scale, units, counts_per_rev, counts_per_metre,
+                     sign_magnitude) -> dict[str, Any]:
+    """Return the options of this reading that differ from the defaults (to read it again)."""
+    out: dict[str, Any] = {}
+    if columns:
+        out["columns"] = {k: v if isinstance(v, int) else str(v) for k, v in columns.items()}
+    if fs is not None:
+        out["fs"] = float(fs)
+    if max_jitter != 0.01:
+        out["max_jitter"] = max_jitter
+    if scale:
+        out["scale"] = {k: v if isinstance(v, (int, float)) else str(v)
+                        for k, v in scale.items()}
+    if units:
+        out["units"] = dict(units)
+    for key, value in (("counts_per_rev", counts_per_rev),
+                       ("counts_per_metre", counts_per_metre)):
+        if value is not None:
+            out[key] = float(value)
+    if sign_magnitude:
+        out["sign_magnitude"] = {k: int(v) for k, v in sign_magnitude.items()}
+    return out
 
 
 def _numeric(values: np.ndarray, fname: str, source: str) -> np.ndarray:

@@ -73,6 +73,9 @@ class Table:
         What was read, e.g. ``"csv (';', decimal ',')"`` or ``"mat v7.3"``.
     notes : dict
         Preamble metadata found above the header (key -> text).
+    repeated : dict of str to list of str
+        A header name the file repeats -> the column names it was given (``pos``,
+        ``pos.1`` ...): asking for that name is ambiguous.
     """
 
     columns: dict[str, np.ndarray]
@@ -83,6 +86,7 @@ class Table:
     t0: float = 0.0
     format: str = ""
     notes: dict[str, str] = field(default_factory=dict)
+    repeated: dict[str, list[str]] = field(default_factory=dict)
 
     @property
     def rows(self) -> int:
@@ -151,9 +155,13 @@ def table_from_dataframe(df: Any, *, source: str = "dataframe") -> Table:
     """
     columns: dict[str, np.ndarray] = {}
     units: dict[str, str] = {}
+    repeated: dict[str, list[str]] = {}
     for header in df.columns:
         name, unit = split_header(str(header))
-        name = _unique(name, columns)
+        unique = _unique(name, columns)
+        if unique != name:
+            repeated.setdefault(name, [name]).append(unique)
+        name = unique
         values = df[header].to_numpy()
         if values.dtype.kind in "biuf":
             columns[name] = values.astype(float)
@@ -161,7 +169,7 @@ def table_from_dataframe(df: Any, *, source: str = "dataframe") -> Table:
             columns[name] = values  # checked when chosen: a text column may go unused
         if unit:
             units[name] = unit
-    return Table(columns=columns, units=units, format=source)
+    return Table(columns=columns, units=units, format=source, repeated=repeated)
 
 
 # -- delimited text -----------------------------------------------------------------------
@@ -237,10 +245,17 @@ def _is_unit_row(parts: list[str]) -> bool:
         text = part.strip().strip("[]()")
         if not text:
             continue
-        if not _known_unit(text):
+        if _known_unit(text):
+            known += 1
+        elif text.lower() not in _OTHER_UNITS:
             return False
-        known += 1
     return known > 0
+
+
+# units of quantities that are no record column, seen in unit rows beside known ones
+# (Maxon EPOS: 'ms;rpm;%' - a torque in % of the rated torque)
+_OTHER_UNITS = {"%", "-", "°c", "degc", "k", "bar", "pa", "kpa", "mpa", "hz", "khz", "w",
+                "kw", "ohm", "Ω", "digits", "inc", "g", "m/s²", "m/s^2", "rad/s²", "rad/s^2"}
 
 
 def _seconds(values: Any) -> np.ndarray | None:
@@ -344,6 +359,17 @@ def _read_text(path: Path) -> Table:
         parts = _header_fields(text, sep, path.name)
         if sep is None and len(parts) != width:
             parts = [p for p in re.split(r"\t|\s{2,}", text.strip()) if p]
+        label, parts = _row_label(parts, width)
+        if label == "other":
+            continue  # 'Description', 'Data type' ... lines of an instrument header block
+        if label == "unit" and unit_row is None:
+            unit_row = parts + [""] * (width - len(parts))
+            used.add(index)
+            continue
+        if label == "name":
+            header = parts + [""] * (width - len(parts))
+            used.add(index)
+            break
         if len(parts) > width:
             parts = parts[:width]  # named columns that stay empty in every row
         if unit_row is None and len(parts) <= width and _is_unit_row(parts):
@@ -383,11 +409,15 @@ def _read_text(path: Path) -> Table:
         header = [str(i) for i in range(width)]
     columns: dict[str, np.ndarray] = {}
     units: dict[str, str] = {}
+    repeated: dict[str, list[str]] = {}
     for i, text in enumerate(header):
         name, unit = split_header(text)
         if unit_row is not None and unit_row[i].strip().strip("[]()"):
             unit = normalise_unit(unit_row[i].strip().strip("[]()"))
-        name = _unique(name or str(i), columns)
+        unique = _unique(name or str(i), columns)
+        if unique != (name or str(i)):
+            repeated.setdefault(name, [name]).append(unique)
+        name = unique
         values = pd.to_numeric(frame[i], errors="coerce").to_numpy(dtype=float)
         if np.isnan(values).all() and frame[i].notna().any():
             stamps = _seconds(frame[i].dropna())
@@ -400,7 +430,40 @@ def _read_text(path: Path) -> Table:
     where = f"header at line {start}" if found else "no header: columns named by index"
     return Table(columns=columns, units=units, meta=meta, fs=fs, notes=notes,
                  format=f"text ({sep_name}, decimal {decimal!r}, {where}"
-                        f"{', units row' if unit_row else ''})")
+                        f"{', units row' if unit_row else ''})", repeated=repeated)
+
+
+#: First fields that label a header line rather than name a column (instrument exports:
+#: NI DIAdem/SignalExpress ``Channel name``/``Unit`` lines, DEWESoft, HBM catman).
+_NAME_LABELS = ("channel name", "channel names", "channel", "channels", "name", "names",
+                "kanal", "kanalname", "signal", "signal name", "variable", "quantity")
+_UNIT_LABELS = ("unit", "units", "unit string", "einheit", "einheiten", "dimension")
+_OTHER_LABELS = ("description", "comment", "comments", "data type", "datatype", "type",
+                 "channel type", "display type", "group name", "group", "beschreibung",
+                 "kommentar", "minimum", "maximum", "min", "max", "wf_increment",
+                 "wf_start_offset", "wf_samples", "sample rate", "samples", "x dimension",
+                 "delta x", "x0", "t0", "dt", "date", "time stamp", "start time", "offset")
+
+
+def _row_label(parts: list[str], width: int) -> tuple[str | None, list[str]]:
+    """Split a leading ``Channel name`` / ``Unit`` label off a header line.
+
+    Returns ``("name" | "unit" | "other" | None, fields)``: with a label and one field more
+    than the data rows, the label is dropped; with as many fields, the label's column gets
+    no name (or no unit) from this line. ``"other"``: another labelled line of the header
+    block (``Description``, ``Data type``), skipped.
+    """
+    if not parts or len(parts) not in (width, width + 1):
+        return None, parts
+    first = parts[0].strip().rstrip(":").strip().lower()
+    kind = "name" if first in _NAME_LABELS else "unit" if first in _UNIT_LABELS else (
+        "other" if first in _OTHER_LABELS and len(parts) == width + 1 else None)
+    if kind is None:
+        return None, parts
+    rest = parts[1:] if len(parts) == width + 1 else [""] + parts[1:]
+    if not any(p.strip() for p in rest):
+        return None, parts
+    return kind, rest
 
 
 def _metadata_pair(preamble: list[str], sep: str | None, decimal: str) -> dict[str, str]:

@@ -197,6 +197,11 @@ def to_si(column: str, unit: str, *, source: str = "", counts_per_rev: float | N
         base = ("rad", 2 * math.pi / counts_per_rev) if counts_per_rev else (
             "m", 1.0 / counts_per_metre)
         return (base[0] + ("/s" if column == "v" else ""), base[1])
+    if canonical == "%":
+        raise FileFormatError(
+            f"{where}column {column!r} is in %, a fraction of a rated or nominal value that "
+            f"the file does not give; state it with --scale {column}=RATED/100 (e.g. "
+            f"--scale {column}=0.5/100 for 0.5 N·m rated; the scaled values are then SI)")
     if canonical in ELECTRICAL_UNITS:
         raise FileFormatError(
             f"{where}column {column!r} is in {unit!r}, an electrical unit; driveid does not "
@@ -239,11 +244,15 @@ def split_header(text: str) -> tuple[str, str | None]:
     (('v', 'm/s'), ('x', 'deg'), ('speed', 'rpm'))
     >>> split_header("Position, mm"), split_header("theta_m")
     (('Position', 'mm'), ('theta_m', None))
+    >>> split_header("pos (3)"), split_header("q[2]")
+    (('pos (3)', None), ('q[2]', None))
     """
     field = text.strip().strip('"').strip("'").strip()
     for pattern in (_BRACKET, _PAREN, _SLASH, _IN):
         match = pattern.match(field)
         if match and match.group("unit").strip():
+            if pattern in (_BRACKET, _PAREN) and not _could_be_unit(match.group("unit")):
+                return field, None  # 'pos (3)', 'q[2]', 'Force (channel 1)': part of the name
             return match.group("name").strip(), normalise_unit(match.group("unit"))
     # only with a unit driveid knows; never "name_unit": theta_m, tau_m are subscripts
     for pattern in (_GLUED_SLASH, _COMMA):
@@ -251,6 +260,29 @@ def split_header(text: str) -> tuple[str, str | None]:
         if match and _is_known(normalise_unit(match.group("unit"))):
             return match.group("name"), normalise_unit(match.group("unit"))
     return field, None
+
+
+_LABEL_WORDS = {"measured", "meas", "actual", "act", "target", "command", "commanded", "cmd",
+                "desired", "setpoint", "reference", "ref", "motor", "load", "encoder", "raw",
+                "filtered", "left", "right", "master", "slave", "model", "predicted",
+                "estimated", "feedback", "demand", "abs", "rel", "absolute", "relative"}
+
+
+def _could_be_unit(text: str) -> bool:
+    """Tell a unit in brackets from an index or label that belongs to the name.
+
+    Known units always are; a bare number (``pos (3)``, a servo or joint number), text with
+    spaces (``Force (channel 1)``) or without a letter never is. Other single words
+    (``x [furlong]``) are taken as units so that an unknown unit is reported, not dropped.
+    """
+    text = text.strip()
+    if _is_known(normalise_unit(text)):
+        return True
+    if text.lower() in _LABEL_WORDS:
+        return False  # 'Position (measured)', 'Torque (motor)'
+    if re.fullmatch(r"[+-]?\d+", text) or not re.search(r"[^\W\d_]|[°%\"']", text):
+        return False
+    return not re.search(r"\s", text) and len(text) <= 12
 
 
 def known_unit(unit: str) -> bool:

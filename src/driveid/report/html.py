@@ -272,6 +272,11 @@ def _input_view(item: Mapping[str, Any]) -> dict[str, str]:
         + (f", file: {in_file[v]}" if v in in_file and in_file[v] != units.get(k) else "")
         + "]"
         for k, v in columns.items())
+    reading = item.get("reading") or {}
+    if reading:  # how the file was read, as the options that read it again (issue 26)
+        from driveid.commands._record_options import reading_as_cli
+
+        cols = (cols + "; " if cols else "") + "read with " + reading_as_cli(reading)
     return {
         "path": str(item.get("path") or "(in memory)"),
         "sha256": str(item.get("sha256") or "—"),
