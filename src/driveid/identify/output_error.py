@@ -47,16 +47,26 @@ from scipy import stats
 from threadpoolctl import threadpool_limits
 
 from driveid.errors import IdentificationError, ParameterError
+from driveid.identify._adequacy import Adequacy
+from driveid.identify._free_decay_starts import sample_starts
+from driveid.identify._free_decay_structures import (
+    StreamWhitener,
+    assess,
+    noise_rounds,
+    simulate_noise,
+)
 from driveid.identify._free_response import (
     GLOBAL_NAMES,
     SINK_ROWS,
     kinetic_stop_count,
     response,
 )
+from driveid.identify._noise import hac_covariance, white_noise
 from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.logdec import estimate_log_decrement
 from driveid.io.record import Record
+from driveid.signal.envelope import noise_std
 from driveid.signal.repair import _interval_blocks
 
 __all__ = ["detect_quantum", "estimate_output_error", "physical_parameters",
@@ -167,18 +177,35 @@ def _joined(arrays, join=np.concatenate):
 
 
 class _Problem:
-    """Records, their per-record unknowns and the stop counts of one candidate."""
+    """Records, their per-record unknowns and the stop counts of one candidate.
 
-    def __init__(self, times, values, drift):
+    ``noise`` (a :class:`NoiseModel`, white by default) prewhitens the fit: target, model
+    and Jacobian go through ``A(q)`` record by record (the filter is linear).
+    """
+
+    def __init__(self, times, values, drift, passive=True):
         self.t = times
         self.y = values
         self.drift = drift
+        self.passive = passive
         self.per = 3 if drift else 2
         self.n = sum(t.size for t in times)
+        self.segments = [t.size for t in times]
+        self.noise = white_noise(np.zeros(1))
 
     def decimated(self, step):
         """Return the same problem on every ``step``-th sample (for the discrete search)."""
-        return _Problem([t[::step] for t in self.t], [y[::step] for y in self.y], self.drift)
+        return _Problem([t[::step] for t in self.t], [y[::step] for y in self.y], self.drift,
+                        self.passive)
+
+    def bounds(self, size):
+        """Bounds: ω0 > 0, ζ± in [0, 1) (passive) or (-1, 1), θk_mean >= 0."""
+        lower = np.full(size, -np.inf)
+        upper = np.full(size, np.inf)
+        lower[0], upper[1:3] = 1e-12, _ZETA_BOUND
+        lower[1:3] = 0.0 if self.passive else -_ZETA_BOUND
+        lower[3] = 0.0
+        return lower, upper
 
     def model(self, p, counts, jacobian=True):
         parts, jacs = [], []
@@ -199,7 +226,7 @@ class _Problem:
                 jacs.append(full)
         return _joined(parts), (_joined(jacs, np.vstack) if jacobian else None)
 
-    def normal_equations(self, p, counts, target):
+    def normal_equations(self, p, counts, target, noise=None):
         """Return ``(f, JᵀJ, Jᵀ(target - f))`` with J formed in blocks, never whole.
 
         Each record's rows touch only its own columns (the shared five, its release and
@@ -215,14 +242,21 @@ class _Problem:
             cols = np.r_[0:5, k:k + self.per]
             y_r = target[offset:offset + t.size]
             slope = p[k + 2] if self.drift else 0.0
+            # the prewhitening filter runs on over the blocks with its state carried
+            whiten = None if noise is None or noise.is_white else \
+                StreamWhitener(noise, cols.size + 1)
 
-            def sink(lo, hi, x_rows, rows, t=t, y_r=y_r, cols=cols, slope=slope):
+            def sink(lo, hi, x_rows, rows, t=t, y_r=y_r, cols=cols, slope=slope,
+                     whiten=whiten):
                 if self.drift:
                     rel = t[lo:hi] - t[0]
                     block = np.column_stack([rows, rel])
                     resid = y_r[lo:hi] - (x_rows + slope * rel)
                 else:
                     block, resid = rows, y_r[lo:hi] - x_rows
+                if whiten is not None:
+                    both = whiten(np.column_stack([block, resid]))
+                    block, resid = both[:, :-1], both[:, -1]
                 jtj[np.ix_(cols, cols)] += block.T @ block
                 jtr[cols] += block.T @ resid
 
@@ -235,22 +269,29 @@ class _Problem:
 
     def fit(self, p0, counts, y=None):
         target = _joined(self.y) if y is None else y
-        lower = np.full(p0.size, -np.inf)
-        upper = np.full(p0.size, np.inf)
-        lower[0], lower[1:3], upper[1:3] = 1e-12, -_ZETA_BOUND, _ZETA_BOUND
+        lower, upper = self.bounds(p0.size)
+        noise, segs = self.noise, self.segments
+        if noise.is_white:  # exactly the unweighted fit
+
+            def whiten(v):
+                return v
+        else:
+
+            def whiten(v):
+                return noise.whiten(v, segs)
 
         def linearise(p):
             if self.n <= SINK_ROWS:  # small: the whole Jacobian, kept for diagnostics
                 f, jac = self.model(p, counts)
-                r = target - f
+                r, jac = whiten(target - f), whiten(jac)
                 return r, jac.T @ jac, jac.T @ r, jac
-            f, jtj, jtr = self.normal_equations(p, counts, target)
-            return target - f, jtj, jtr, None
+            f, jtj, jtr = self.normal_equations(p, counts, target, noise)
+            return whiten(target - f), jtj, jtr, None
 
         with np.errstate(over="ignore", invalid="ignore"):
             return _levenberg_marquardt(
-                lambda p: self.model(p, counts, False)[0], linearise,
-                target, np.clip(p0, lower, upper), lower, upper)
+                lambda p: whiten(self.model(p, counts, False)[0]), linearise,
+                whiten(target), np.clip(p0, lower, upper), lower, upper)
 
 
 class _Solution:
@@ -340,6 +381,49 @@ def _guess(records, x_ref, mass, stiffness):
     return np.array(glob), releases, mid_swing
 
 
+def _best_start(records, coarse, x_ref, mass, stiffness):
+    """Settle the fit from every start strategy on the search copy; keep the lowest RSS.
+
+    Strategies: the peak log decrement (:func:`_guess`), and from the samples the spectral
+    peak with an exponential or a linear (Coulomb) envelope (:mod:`._free_decay_starts`), so
+    that coarse, mid-swing or Coulomb-tailed records do not hinge on the peak estimator.
+    """
+    starts, failures = [], []
+    try:
+        glob, releases, _ = _guess(records, x_ref, mass, stiffness)
+        starts.append(("peaks", glob, releases))
+    except IdentificationError as exc:
+        failures.append(str(exc))
+    starts += [(name, glob, rel) for name, glob, rel, _ in sample_starts(coarse.t, coarse.y)]
+    target = _joined(coarse.y)
+    floor = noise_std(target) ** 2 * coarse.n
+    best = None
+    for name, glob, releases in starts:
+        p0 = list(glob)
+        for x_r, t_r in releases:
+            p0 += [x_r, t_r] + ([0.0] if coarse.drift else [])
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                p, counts, settled = _settle(coarse, np.array(p0))
+                r = target - coarse.model(p, counts, False)[0]
+        except (IdentificationError, np.linalg.LinAlgError, ValueError, OverflowError):
+            continue
+        rss = float(r @ r)
+        if not (np.all(np.isfinite(p)) and math.isfinite(rss)):
+            continue
+        if best is None or rss < best[0]:
+            best = (rss, p, counts, settled, name)
+        if name == "peaks" and settled is not None and 0 < rss <= 1.5 * floor:
+            break  # the peak start already fits to the noise: the others cannot do better
+    if best is None:
+        detail = f" (the peak estimator: {failures[0]})" if failures else ""
+        raise IdentificationError(
+            "no start strategy (peaks, exponential or linear envelope) gave a converging free-"
+            f"decay fit{detail}; check that the record is a free decay, or crop it with "
+            "--t-start/--t-end")
+    return best[1], best[2], best[3], best[4]
+
+
 def _combine(candidates):
     """Average candidate fits with weights exp(-Δχ²/2); return mean, covariance, weights."""
     chi2 = np.array([c["chi2"] for c in candidates])
@@ -363,6 +447,7 @@ def estimate_output_error(
     bootstrap: int = 25,
     rng: np.random.Generator | int | None = None,
     progress: Callable[[int, int], Any] | None = None,
+    passive: bool = True,
 ) -> Estimate:
     """Fit the exact piecewise free response to every sample of one or more free decays.
 
@@ -390,6 +475,9 @@ def estimate_output_error(
     progress : callable, optional
         Called as ``progress(done, total)`` after each bootstrap refit (the long part of a
         quantised record: about 0.2-0.4 s a refit at 30 000 samples).
+    passive : bool
+        Bound the damping ratios at ζ± >= 0 (a passive system); False admits negative
+        damping (PD feedback with negative D). ``theta_k_mean >= 0`` always.
 
     Returns
     -------
@@ -466,16 +554,13 @@ def estimate_output_error(
         quantum = float(quantisation)
     # one BLAS thread: the products are small (p = 7..20) and threads only contend
     with threadpool_limits(limits=1):
-        problem = _Problem([np.asarray(r.t, float)[::subsample] for r in records], y, drift)
-        glob, releases, mid_swing = _guess(records, x_ref, mass, stiffness)
-        p0 = list(glob)
-        for x_r, t_r in releases:
-            p0 += [x_r, t_r] + ([0.0] if drift else [])
-        p0 = np.array(p0)
-
+        problem = _Problem([np.asarray(r.t, float)[::subsample] for r in records], y, drift,
+                           passive)
         step = math.ceil(problem.n / _SEARCH_SAMPLES)
         coarse = problem.decimated(step) if step > 1 else problem
-        p_best, counts0, settled = _settle(coarse, p0)
+        p_best, counts0, settled, start_name = _best_start(records, coarse, x_ref, mass,
+                                                           stiffness)
+        p0 = p_best
         candidates = _candidates(coarse, p_best, counts0, settled)
         if coarse is not problem:
             candidates = _refine(problem, coarse, candidates)
@@ -485,9 +570,14 @@ def estimate_output_error(
                 "is not a free decay of this model (check for drift, offsets or forcing)")
         chosen = min(candidates, key=lambda c: c["rss"])
         n_par = p0.size
-        dof = problem.n - n_par
-        if dof <= 0:
+        if problem.n - n_par <= 0:
             raise IdentificationError(f"{problem.n} samples cannot determine {n_par} unknowns")
+        # prediction error with an AR noise model of the residuals (white: no change)
+        candidates, chosen = noise_rounds(problem, candidates, chosen, n_par, _forbidden)
+        dof = problem.n - problem.noise.order * len(records) - n_par
+        if dof <= 0:
+            raise IdentificationError(f"{problem.n} samples cannot determine {n_par} unknowns "
+                                      f"and an AR({problem.noise.order}) noise model")
         s2 = chosen["rss"] / dof
         for c in candidates:
             c["chi2"] = c["rss"] / s2 if s2 > 0 else (0.0 if c is chosen else math.inf)
@@ -498,8 +588,11 @@ def estimate_output_error(
             for c in candidates:
                 c["cov"] = boot
         p, cov, weights = _combine(candidates)
+        verdict = assess(problem, chosen, p)
+        p, cov, covariance_kind = _apply_verdict(problem, verdict, candidates, p, cov, quantum)
         est = _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum,
-                        mass, stiffness, x_ref, mid_swing, bootstrap)
+                        mass, stiffness, x_ref, bootstrap, verdict, covariance_kind,
+                        start_name)
     if subsample > 1:
         est = est.with_warnings(
             f"{n_given} samples: fitted on every {subsample}th sample "
@@ -625,15 +718,24 @@ def _condition(sol):
 
 
 def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progress=None):
-    """Covariance of refits to the fitted response re-quantised on randomly shifted grids."""
+    """Covariance of refits to the fitted response re-quantised on randomly shifted grids.
+
+    With a coloured noise model the noise re-added before re-quantising is AR noise of the
+    fitted spectrum (not white), and each replicate is refitted with the same prewhitening.
+    """
     gen = np.random.default_rng(rng)
     fitted, _ = problem.model(chosen["p"], chosen["counts"], jacobian=False)
     # noise beyond the rounding itself (variance q²/12), re-added before re-quantising
-    extra = math.sqrt(max(s2 - quantum**2 / 12.0, 0.0))
+    noise = problem.noise
+    raw_var = s2 if noise.is_white else noise.variance
+    extra = math.sqrt(max(raw_var - quantum**2 / 12.0, 0.0))
     estimates = []
     for k in range(replicates):
         phase = gen.uniform(0.0, quantum)
-        noisy = fitted + (gen.normal(0.0, extra, fitted.size) if extra > 0 else 0.0)
+        if extra > 0 and not noise.is_white:
+            noisy = fitted + simulate_noise(noise, problem.segments, extra**2, gen)
+        else:
+            noisy = fitted + (gen.normal(0.0, extra, fitted.size) if extra > 0 else 0.0)
         y_b = quantum * np.round((noisy - phase) / quantum) + phase
         sol = problem.fit(chosen["p"], chosen["counts"], y=y_b)
         if sol.status > 0 and np.all(np.isfinite(sol.x)):
@@ -645,6 +747,36 @@ def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progres
             f"only {len(estimates)} of {replicates} bootstrap refits converged; the error bars "
             "of this quantised record cannot be trusted (record more cycles or a finer encoder)")
     return replicate_covariance(estimates)
+
+
+def _apply_verdict(problem, verdict, candidates, p, cov, quantum):
+    """Take a chosen richer structure's fit, or widen inadequate error bars (sandwich)."""
+    richer = verdict["richer"]
+    if richer is not None:
+        theta, jac = richer["theta"], richer["jac"]
+        n_w = richer["white_residual"].size
+        s2_w = richer["rss"] / max(n_w - theta.size, 1)
+        try:
+            cov_s = np.linalg.inv(jac.T @ jac) * s2_w
+        except np.linalg.LinAlgError:
+            cov_s = np.full((theta.size, theta.size), np.nan)
+        if not richer["whiteness"]["white"]:
+            cov_s = hac_covariance(jac, richer["white_residual"])
+            return theta, cov_s, "sandwich"
+        return theta, cov_s, "prewhitened"
+    if verdict["whiteness"]["white"] or quantum is not None:
+        return p, cov, "bootstrap" if quantum is not None else "prewhitened"
+    sol = min(candidates, key=lambda c: c["rss"])["sol"]
+    if sol.jac is None:  # long record: no whole Jacobian for the sandwich
+        return p, cov, "prewhitened (sandwich not formed above 131 072 samples)"
+    r_w = problem.noise.whiten(np.concatenate(problem.y)
+                               - problem.model(sol.x, min(candidates, key=lambda c: c["rss"])
+                                               ["counts"], False)[0], problem.segments)
+    hac = hac_covariance(sol.jac, r_w)
+    for c in candidates:
+        c["cov"] = hac
+    p, cov, _ = _combine(candidates)
+    return p, cov, "sandwich"
 
 
 def replicate_covariance(replicates: Sequence[np.ndarray]) -> np.ndarray:
@@ -670,10 +802,12 @@ def replicate_covariance(replicates: Sequence[np.ndarray]) -> np.ndarray:
 
 
 def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum, mass,
-              stiffness, x_ref, mid_swing, bootstrap):
+              stiffness, x_ref, bootstrap, verdict, covariance_kind, start_name):
     u = _units(records[0])
+    richer = verdict["richer"]
+    noise = richer["noise"] if richer is not None else problem.noise
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    if not np.all(np.isfinite(p)) or np.any(se[:5] <= 0) or not np.all(np.isfinite(se)):
+    if not np.all(np.isfinite(p)) or np.any(se[:5] <= 0) or not np.all(np.isfinite(se[:5])):
         raise IdentificationError(
             "the fit gave a zero or non-finite standard error: the record carries no noise "
             "information about some parameter; add the record's noise or record longer")
@@ -682,6 +816,9 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
     params = {n: Parameter(float(p[i]), float(se[i]), un)
               for i, (n, un) in enumerate(zip(names, units, strict=True))}
     cov_names, cov_matrix = names, cov[:5, :5]
+    quad = richer["layout"].get("quad") if richer is not None else None
+    if quad is not None:
+        params["zeta_quad"] = Parameter(float(p[quad]), float(se[quad]), f"1/{u['x']}")
     if mass is not None or stiffness is not None:
         phys = physical_parameters(p[:5], mass, stiffness)
         free = [n for n in ("J", "K") if not ((n == "J" and mass is not None)
@@ -699,32 +836,37 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
                                          phys_units[name])
             else:
                 params[name] = Parameter(phys[name], math.nan, phys_units[name], fixed=True)
-    warnings = []
-    for name in ("zeta_plus", "zeta_minus"):
-        z = params[name].value
-        if not 0.0 < z < _ZETA_BOUND - 1e-6:
-            warnings.append(
-                f"{name} = {z:.4g} is outside (0, 1): the decay is not an underdamped passive "
-                "oscillation (negative damping from feedback, or a bad fit); check the record")
-    if params["theta_k_mean"].value < 0:
-        warnings.append(
-            f"theta_k_mean = {params['theta_k_mean'].value:.4g} {u['x']} is negative kinetic "
-            "friction: the record is probably not a free decay (forcing, drift); try drift=True")
-    tkd, tkm = params["theta_k_delta"], params["theta_k_mean"]
-    if x_ref == 0.0 and abs(tkd.value) > abs(tkm.value) + 2 * tkd.stderr:
-        # |fk_delta| > fk_mean means one direction's kinetic friction pushes: far more
-        # likely an encoder zero away from the spring's rest position than physics
-        warnings.append(
-            f"|fk_delta| exceeds fk_mean ({tkd.value:.3g} vs {tkm.value:.3g} {u['x']} as "
-            "theta_k): one direction's friction would push; an offset between the encoder "
-            "zero and the spring zero looks the same (not identifiable from a free decay) - "
-            "pass the spring zero with x_ref (CLI: --x-ref)")
+        if quad is not None:  # q = 4 c2 / (3 pi J)
+            scale = 0.75 * math.pi * phys["J"]
+            params["c_quad"] = Parameter(scale * float(p[quad]), scale * float(se[quad]),
+                                         f"{u['c']}/({u['x']}/s)")
+    lower, _ = problem.bounds(5)
+    at_bound = [n for i, n in enumerate(GLOBAL_NAMES) if i in (1, 2, 3)
+                and params[n].value <= lower[i] + 1e-12 * max(1.0, abs(p[0]))]
+    if quad is not None and p[quad] <= 0.0:
+        at_bound.append("zeta_quad")
+    warnings = _physics_warnings(params, at_bound, x_ref, u, problem.passive)
+    per = problem.per
+    mid_swing = [bool(p[6 + per * r] < t[0] - 0.5 * float(np.median(np.diff(t[:64]))))
+                 for r, t in enumerate(problem.t)]
     if any(mid_swing):
         warnings.append("a record starts mid-swing: its release is the velocity zero before "
                         "the first sample (extrapolated)")
-    per = problem.per
-    fitted, _ = problem.model(p, chosen["counts"], jacobian=False)
-    residual = _joined(problem.y) - fitted
+    adequacy, adequacy_warnings = _adequacy_of(verdict, problem, p, covariance_kind)
+    warnings += adequacy_warnings
+    if richer is not None:
+        residual = richer["residual"] if richer["step"] == 1 else \
+            _joined(problem.y) - _structure_fitted(problem, richer, chosen)
+        fitted = _joined(problem.y) - residual
+        drift_at = richer["layout"].get("drift")
+    else:
+        fitted, _ = problem.model(p, chosen["counts"], jacobian=False)
+        residual = _joined(problem.y) - fitted
+        drift_at = None
+    drifts = [float(p[7 + per * r]) if per == 3 else 0.0 for r in range(len(records))]
+    if drift_at is not None:
+        drifts = [d + float(p[drift_at + r]) for r, d in enumerate(drifts)]
+    one_sided = {n: [0.0, params[n].value + 1.645 * params[n].stderr] for n in at_bound}
     return Estimate(
         method="output-error",
         params=params,
@@ -733,7 +875,7 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
         data_used={
             "release_x": [float(p[5 + per * r] + x_ref) for r in range(len(records))],
             "release_t": [float(p[6 + per * r]) for r in range(len(records))],
-            "drift": [float(p[7 + per * r]) if per == 3 else 0.0 for r in range(len(records))],
+            "drift": drifts,
             "n_half": [int(n) for n in chosen["counts"]],
             "x_ref": float(x_ref),
             "fit_x": fitted + x_ref,
@@ -743,7 +885,7 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
             "n_samples": problem.n,
             "n_unknowns": int(p.size),
             "residual_rms": math.sqrt(float(residual @ residual) / problem.n),
-            "noise_std": math.sqrt(s2),
+            "noise_std": math.sqrt(s2) if noise.is_white else math.sqrt(noise.variance),
             "quantum": quantum,
             "bootstrap": bootstrap if quantum is not None else 0,
             "n_candidates": len(candidates),
@@ -751,5 +893,93 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
             "mid_swing": list(mid_swing),
             "condition_number": _condition(chosen["sol"]),
             "nfev": int(chosen["sol"].nfev),
+            "start": start_name,
+            "noise_model": noise.to_dict(),
+            "structure": adequacy["structures"]["chosen"] if adequacy["structures"]
+            else "viscous + Coulomb",
+            "adequacy": adequacy,
+            "at_bound": at_bound,
+            "one_sided_95": one_sided,
         },
     )
+
+
+def _structure_fitted(problem, richer, chosen):
+    from driveid.identify._free_decay_structures import structure_model
+
+    lay = richer["layout"]
+    return structure_model(problem.t, richer["theta"], chosen["counts"], problem.per,
+                           "drift" in lay, "quad" in lay)
+
+
+def _physics_warnings(params, at_bound, x_ref, u, passive):
+    """Warnings for estimates at a bound or outside physics, each naming the likely cause."""
+    warnings = []
+    for name in ("zeta_plus", "zeta_minus"):
+        z = params[name].value
+        if name in at_bound:
+            warnings.append(
+                f"{name} is at its bound 0 (95 % one-sided upper limit "
+                f"{z + 1.645 * params[name].stderr:.3g}): the record shows no viscous damping "
+                "in that direction; Coulomb friction or an amplitude-dependent damping the "
+                "model lacks may be taking its place (driveid identify hilbert shows the "
+                "damping against amplitude)")
+        elif not 0.0 < z < _ZETA_BOUND - 1e-6:
+            warnings.append(
+                f"{name} = {z:.4g} is outside (0, 1): the decay is not an underdamped passive "
+                "oscillation (negative damping from feedback, or a bad fit); check the record")
+    tkm = params["theta_k_mean"]
+    if "theta_k_mean" in at_bound:
+        warnings.append(
+            f"theta_k_mean is at its bound 0 {u['x']}: no Coulomb friction is resolved (95 % "
+            f"one-sided upper limit {1.645 * tkm.stderr:.3g} {u['x']}); a decay that slows "
+            "less than exponentially at small amplitude (quadratic damping) pushes it there")
+    tkd = params["theta_k_delta"]
+    if x_ref == 0.0 and abs(tkd.value) > abs(tkm.value) + 2 * tkd.stderr:
+        # |fk_delta| > fk_mean means one direction's kinetic friction pushes: far more
+        # likely an encoder zero away from the spring's rest position than physics
+        warnings.append(
+            f"|fk_delta| exceeds fk_mean ({tkd.value:.3g} vs {tkm.value:.3g} {u['x']} as "
+            "theta_k): one direction's friction would push; an offset between the encoder "
+            "zero and the spring zero looks the same (not identifiable from a free decay) - "
+            "pass the spring zero with x_ref (CLI: --x-ref)")
+    return warnings
+
+
+def _adequacy_of(verdict, problem, p, covariance_kind):
+    """Return the Adequacy record and its warnings (inadequate: what the residuals show)."""
+    from driveid.identify._free_decay_structures import inadequacy_notes
+
+    richer = verdict["richer"]
+    test = verdict["structures"]
+    white = richer["whiteness"] if richer is not None else verdict["whiteness"]
+    notes, warnings = [], []
+    if test is not None:
+        notes.append(test["comparison"]["reason"])
+    if not white["white"]:
+        if richer is not None:
+            w_res, raw = richer["white_residual"], richer["residual"]
+        else:
+            raw, w_res = verdict["raw_residual"], verdict["white_residual"]
+        dt = float(np.median(np.diff(problem.t[0][:256])))
+        omega_d = float(p[0]) * math.sqrt(max(1.0 - float(p[1]) ** 2, 1e-12))
+        found = inadequacy_notes(w_res, raw, 1.0 / dt, omega_d,
+                                 test["comparison"] if test else None)
+        notes += found
+        warnings.append(
+            "no structure tried (viscous + Coulomb, + drift, + quadratic damping) explains "
+            "this record: its prewhitened residuals are not white (Ljung-Box p = "
+            f"{white['p_value']:.2g}); " + "; ".join(found)
+            + f"; error bars are {covariance_kind}")
+    adequacy = Adequacy(whiteness=white,
+                        structures=_json_structures(test),
+                        covariance=covariance_kind, notes=tuple(notes))
+    return adequacy.to_dict(), warnings
+
+
+def _json_structures(test):
+    if test is None:
+        return None
+    comp = dict(test["comparison"])
+    comp["decimation"] = int(test["step"])
+    return comp
