@@ -28,8 +28,8 @@ from scipy.optimize import least_squares
 from scipy.signal import lfilter
 
 from driveid.identify._adequacy import Structure, compare_structures, ljung_box
-from driveid.identify._free_response import response
-from driveid.identify._noise import NoiseModel, fit_noise_model
+from driveid.identify._free_response import kinetic_stop_count, response
+from driveid.identify._noise import NoiseModel, fit_noise_model, white_noise
 
 __all__ = ["StreamWhitener", "simulate_noise", "structure_test", "fit_structure",
            "DRIFT", "QUADRATIC", "BASE"]
@@ -38,7 +38,7 @@ BASE = "viscous + Coulomb"
 DRIFT = "+ drift"
 QUADRATIC = "+ quadratic damping"
 #: Samples the structure test is decimated to [-] (the fits differentiate numerically).
-STRUCTURE_SAMPLES = 6000
+STRUCTURE_SAMPLES = 4000
 _EFFECTS = {
     DRIFT: ("a slow drift of the measured position (sensor, support or thermal)",
             "driveid identify logdec --drift"),
@@ -223,9 +223,7 @@ def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, seg
         r = y_w - noise.whiten(f, segments)
         return np.where(np.isfinite(r), r, 1e6)
 
-    scale = np.maximum(np.abs(theta0), 1e-6)
-    scale[1:3] = np.maximum(scale[1:3], 1e-3)
-    sol = least_squares(resid, theta0, bounds=(lower, upper), x_scale=scale,
+    sol = least_squares(resid, theta0, bounds=(lower, upper), x_scale="jac",
                         max_nfev=max_nfev * theta0.size, method="trf")
     raw = y - structure_model(times, sol.x, counts, per, add_drift, add_quad)
     return {"theta": sol.x, "residual": raw, "white_residual": sol.fun,
@@ -263,34 +261,76 @@ def structure_test(times: Sequence[np.ndarray], y: np.ndarray, p: np.ndarray,
     """
     n = sum(t.size for t in times)
     step = max(1, math.ceil(n / STRUCTURE_SAMPLES))
+    counts = list(counts)
+    for r, t in enumerate(times):  # still moving at the end: spare half cycles are harmless
+        k = 5 + per * r
+        n_stop, inside = kinetic_stop_count(p[:5], p[k], p[k + 1], float(t[-1]))
+        if not inside:
+            counts[r] = max(counts[r], n_stop) + 2
     lengths = [t.size for t in times]
     t_d = [t[::step] for t in times]
     starts = np.cumsum([0] + lengths[:-1])
     y_d = np.concatenate([y[s:s + m:step] for s, m in zip(starts, lengths, strict=True)])
     seg_d = [t.size for t in t_d]
-    base_raw = y_d - structure_model(t_d, p, counts, per, False, False)
-    noise = fit_noise_model(base_raw, segments=seg_d, n_params=p.size)
     n_records = len(times)
     options = [(BASE, False, False), (DRIFT, True, False), (QUADRATIC, False, True)]
     if per == 3:  # the base already has a drift
         options = [options[0], options[2]]
-    fits, candidates = {}, []
+    white = NoiseModel((), 1.0, 1.0, 0, (), "white")
+    fits, sizes = {}, {}
     for name, add_drift, add_quad in options:
         lay = _layout(n_records, per, add_drift, add_quad)
         theta0 = np.concatenate([p, np.zeros(lay["size"] - p.size)])
-        if add_quad:  # start at a third of the viscous damping at the first amplitude
-            amp = max(float(np.ptp(y_d[:max(seg_d[0] // 4, 4)])) / 2.0, 1e-12)
-            theta0[lay["quad"]] = max(0.3 * min(p[1], p[2]) / amp, 1e-6 / amp)
-        fit = fit_structure(t_d, y_d, theta0, counts, per, add_drift, add_quad, noise, seg_d,
-                            passive=passive)
+        starts = [theta0]
+        if add_quad:
+            # half the damping from the drag at the typical amplitude, with and without the
+            # base's Coulomb friction (which a drag-damped decay pushes the base towards)
+            amp = max(math.sqrt(2.0) * float(np.std(y_d)), 1e-12)
+            zeta = 0.5 * max(0.5 * (p[1] + p[2]), 1e-4)
+            theta0[1:3] = 0.5 * p[1:3]
+            theta0[lay["quad"]] = zeta / amp
+            bare = theta0.copy()
+            bare[3] = 0.0
+            starts = [theta0, bare]
+        # each structure gets its own noise model: a misfit must not hide in the AR model
+        fit = min((fit_structure(t_d, y_d, th, counts, per, add_drift, add_quad, white, seg_d,
+                                 passive=passive) for th in starts), key=lambda f: f["rss"])
+        noise = fit_noise_model(fit["residual"], segments=seg_d, n_params=lay["size"])
+        if not noise.is_white:
+            fit = fit_structure(t_d, y_d, fit["theta"], counts, per, add_drift, add_quad,
+                                noise, seg_d, passive=passive)
+        fit["noise"] = noise
         fits[name] = fit
+        sizes[name] = lay["size"]
+    # the same prewhitened samples for every structure: drop the largest order's head
+    top = max(f["noise"].order for f in fits.values())
+    candidates = []
+    for name, _, _ in options:
+        fit = fits[name]
+        kept = _trim(fit["white_residual"], seg_d, fit["noise"].order, top)
         effect, command = _EFFECTS.get(name, ("", ""))
-        n_w = fit["white_residual"].size
-        candidates.append(Structure(name, lay["size"] + noise_order, fit["rss"] / n_w, n_w,
-                                    effect, command))
+        candidates.append(Structure(name, sizes[name] + fit["noise"].order,
+                                    float(kept @ kept) / kept.size, kept.size, effect, command))
     comparison = compare_structures(candidates)
-    return {"comparison": comparison, "fits": fits, "step": step, "noise": noise,
+    best = next(c for c in candidates if c.name == comparison["chosen"])
+    if best is not candidates[0]:  # each has its own noise model: say so, not Δk
+        comparison["reason"] = (
+            f"'{best.name}' chosen over '{BASE}': BIC lower by "
+            f"{candidates[0].bic - best.bic:.1f} with each structure's own AR noise model "
+            f"(orders {fits[BASE]['noise'].order} and {fits[best.name]['noise'].order}); "
+            f"{best.effect}")
+    return {"comparison": comparison, "fits": fits, "step": step, "counts": counts,
             "options": {name: (d, q) for name, d, q in options}}
+
+
+def _trim(white_residual, segments, order, top):
+    """Drop ``top - order`` more leading rows of each record's prewhitened residuals."""
+    parts, start = [], 0
+    for length in segments:
+        m = max(length - order, 0)
+        parts.append(white_residual[start:start + m][top - order:])
+        start += m
+    return np.concatenate(parts)
 
 
 def inadequacy_notes(white_residual: np.ndarray, raw_residual: np.ndarray, fs: float,
@@ -364,9 +404,21 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
     (list of dict, dict)
         The refitted candidates and the chosen one (unchanged when the residuals are white).
     """
+    y = np.concatenate(problem.y)
+    white_rss = None
+    first = (candidates, chosen)
     for _ in range(rounds):
-        resid = np.concatenate(problem.y) - problem.model(chosen["p"], chosen["counts"],
-                                                           False)[0]
+        resid = y - problem.model(chosen["p"], chosen["counts"], False)[0]
+        rss = float(resid @ resid)
+        if white_rss is None:
+            white_rss = rss
+        elif rss > 1.05 * white_rss:
+            # the prewhitened fit wandered (an AR model fitted to a misfit, not to noise,
+            # is blind at low frequencies): keep the white fit; assess() then tests the
+            # structures and widens the error bars
+            problem.noise = white_noise(resid)
+            problem.noise_rejected = True
+            return first
         model = fit_noise_model(resid, segments=problem.segments, n_params=n_par)
         if _same_noise(model, problem.noise):
             break
@@ -384,7 +436,31 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
             break
         candidates = refits
         chosen = min(candidates, key=lambda c: c["rss"])
+    resid = y - problem.model(chosen["p"], chosen["counts"], False)[0]
+    if white_rss is not None and float(resid @ resid) > 1.05 * white_rss:
+        problem.noise = white_noise(resid)
+        problem.noise_rejected = True
+        return first
     return candidates, chosen
+
+
+def _against_bootstrap(lb: dict, boot_q) -> dict:
+    """Judge a quantised record's Ljung–Box Q against refits of exactly-modelled records.
+
+    Quantisation error follows the signal, so an exact model leaves non-white residuals
+    too; the bootstrap replicates (the fitted response plus the noise, re-quantised) give
+    Q's distribution under "the model is right". Not white: Q above their mean + 4 sd.
+    """
+    if not boot_q:
+        return lb
+    q = np.asarray(boot_q, float)
+    limit = float(np.mean(q) + 4.0 * np.std(q, ddof=1))
+    out = dict(lb)
+    out["test"] = "ljung-box against the quantisation bootstrap"
+    out["bootstrap_limit"] = limit
+    out["p_value"] = float((1 + np.sum(q >= lb["statistic"])) / (1 + q.size))
+    out["white"] = bool(lb["statistic"] <= limit)
+    return out
 
 
 def assess(problem, chosen, p, *, run_structures: bool | None = None) -> dict:
@@ -399,8 +475,8 @@ def assess(problem, chosen, p, *, run_structures: bool | None = None) -> dict:
     p : ndarray, shape (k,)
         The (candidate-averaged) estimate.
     run_structures : bool, optional
-        Force the structure test on or off; default: when the white-noise residuals are
-        not white, or the record is short (cheap).
+        Force the structure test on or off; default: short records (cheap), a rejected
+        or high-order (>= 4) noise model, or prewhitened residuals that are not white.
 
     Returns
     -------
@@ -413,10 +489,15 @@ def assess(problem, chosen, p, *, run_structures: bool | None = None) -> dict:
     raw = y - problem.model(p, chosen["counts"], False)[0]
     noise = problem.noise
     white_r = noise.whiten(raw, problem.segments)
-    lb = ljung_box(white_r, fitted=noise.order)
+    lb = _against_bootstrap(ljung_box(white_r, fitted=noise.order),
+                            getattr(problem, "boot_q", None))
     lb_raw = ljung_box(raw)
     if run_structures is None:
-        run_structures = (not lb_raw["white"]) or problem.n <= 3000
+        # cheap, or a sign of a misfit: an AR model that was rejected, or of high order
+        # (a low-order one fitted to white-after-whitening residuals is sensor colour)
+        run_structures = (problem.n <= 1500 or getattr(problem, "noise_rejected", False)
+                          or not lb["white"]
+                          or (not lb_raw["white"] and noise.order >= 4))
     out = {"whiteness": lb, "raw_whiteness": lb_raw, "structures": None, "richer": None,
            "raw_residual": raw, "white_residual": white_r}
     if not run_structures:
@@ -429,22 +510,23 @@ def assess(problem, chosen, p, *, run_structures: bool | None = None) -> dict:
         return out
     add_drift, add_quad = test["options"][name]
     theta = test["fits"][name]["theta"]
+    counts = test["counts"]
     if problem.n <= 100_000:  # refit on every sample, the noise model re-estimated
         segs = problem.segments
         for _ in range(2):
-            raw_s = y - structure_model(problem.t, theta, chosen["counts"], problem.per,
-                                        add_drift, add_quad)
+            raw_s = y - structure_model(problem.t, theta, counts, problem.per, add_drift,
+                                        add_quad)
             nm = fit_noise_model(raw_s, segments=segs, n_params=theta.size)
-            fit = fit_structure(problem.t, y, theta, chosen["counts"], problem.per, add_drift,
+            fit = fit_structure(problem.t, y, theta, counts, problem.per, add_drift,
                                 add_quad, nm, segs, passive=problem.passive)
             theta = fit["theta"]
         fit["noise"] = nm
         fit["step"] = 1
     else:
         fit = dict(test["fits"][name])
-        fit["noise"] = test["noise"]
         fit["step"] = test["step"]
     fit["name"] = name
+    fit["counts"] = counts
     fit["layout"] = _layout(len(problem.t), problem.per, add_drift, add_quad)
     fit["whiteness"] = ljung_box(fit["white_residual"], fitted=fit["noise"].order)
     out["richer"] = fit

@@ -39,6 +39,7 @@ fit is our extension, with the thesis's model unchanged.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -47,7 +48,7 @@ from scipy import stats
 from threadpoolctl import threadpool_limits
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify._adequacy import Adequacy
+from driveid.identify._adequacy import Adequacy, ljung_box
 from driveid.identify._free_decay_starts import sample_starts
 from driveid.identify._free_decay_structures import (
     StreamWhitener,
@@ -66,7 +67,6 @@ from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.logdec import estimate_log_decrement
 from driveid.io.record import Record
-from driveid.signal.envelope import noise_std
 from driveid.signal.repair import _interval_blocks
 
 __all__ = ["detect_quantum", "estimate_output_error", "physical_parameters",
@@ -319,9 +319,14 @@ def _levenberg_marquardt(model, linearise, target, p, lower, upper, max_iter=100
         d = np.diag(A).copy()
         d[d <= 0] = 1.0
         improved = False
+        # active set: a parameter at a bound whose gradient points out of the box stays
+        # there (a clipped step would crawl along the bound for max_iter iterations)
+        free = ~(((p <= lower) & (g < 0)) | ((p >= upper) & (g > 0)))
         for _ in range(30):
             try:
-                step = np.linalg.solve(A + lam * np.diag(d), g)
+                step = np.zeros_like(p)
+                step[free] = np.linalg.solve((A + lam * np.diag(d))[np.ix_(free, free)],
+                                             g[free])
             except np.linalg.LinAlgError:
                 lam *= 10.0
                 continue
@@ -390,13 +395,14 @@ def _best_start(records, coarse, x_ref, mass, stiffness):
     """
     starts, failures = [], []
     try:
-        glob, releases, _ = _guess(records, x_ref, mass, stiffness)
+        with warnings.catch_warnings():  # one strategy of several: its complaints are moot
+            warnings.simplefilter("ignore")
+            glob, releases, _ = _guess(records, x_ref, mass, stiffness)
         starts.append(("peaks", glob, releases))
     except IdentificationError as exc:
         failures.append(str(exc))
     starts += [(name, glob, rel) for name, glob, rel, _ in sample_starts(coarse.t, coarse.y)]
     target = _joined(coarse.y)
-    floor = noise_std(target) ** 2 * coarse.n
     best = None
     for name, glob, releases in starts:
         p0 = list(glob)
@@ -413,8 +419,6 @@ def _best_start(records, coarse, x_ref, mass, stiffness):
             continue
         if best is None or rss < best[0]:
             best = (rss, p, counts, settled, name)
-        if name == "peaks" and settled is not None and 0 < rss <= 1.5 * floor:
-            break  # the peak start already fits to the noise: the others cannot do better
     if best is None:
         detail = f" (the peak estimator: {failures[0]})" if failures else ""
         raise IdentificationError(
@@ -730,6 +734,7 @@ def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progres
     raw_var = s2 if noise.is_white else noise.variance
     extra = math.sqrt(max(raw_var - quantum**2 / 12.0, 0.0))
     estimates = []
+    problem.boot_q = []
     for k in range(replicates):
         phase = gen.uniform(0.0, quantum)
         if extra > 0 and not noise.is_white:
@@ -740,6 +745,11 @@ def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progres
         sol = problem.fit(chosen["p"], chosen["counts"], y=y_b)
         if sol.status > 0 and np.all(np.isfinite(sol.x)):
             estimates.append(sol.x)
+            # whiteness statistic of a record that fits the model exactly: quantisation
+            # alone makes residuals non-white, so the observed one is judged against these
+            r_b = noise.whiten(y_b - problem.model(sol.x, chosen["counts"], False)[0],
+                               problem.segments)
+            problem.boot_q.append(ljung_box(r_b, fitted=noise.order)["statistic"])
         if progress is not None:
             progress(k + 1, replicates)
     if len(estimates) < max(10, replicates // 2):
@@ -841,9 +851,10 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
             params["c_quad"] = Parameter(scale * float(p[quad]), scale * float(se[quad]),
                                          f"{u['c']}/({u['x']}/s)")
     lower, _ = problem.bounds(5)
+    # at a bound: within a thousandth of a standard error of it (the fits stop there)
     at_bound = [n for i, n in enumerate(GLOBAL_NAMES) if i in (1, 2, 3)
-                and params[n].value <= lower[i] + 1e-12 * max(1.0, abs(p[0]))]
-    if quad is not None and p[quad] <= 0.0:
+                and params[n].value - lower[i] <= 1e-3 * params[n].stderr]
+    if quad is not None and p[quad] <= 1e-3 * se[quad]:
         at_bound.append("zeta_quad")
     warnings = _physics_warnings(params, at_bound, x_ref, u, problem.passive)
     per = problem.per
@@ -876,7 +887,7 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
             "release_x": [float(p[5 + per * r] + x_ref) for r in range(len(records))],
             "release_t": [float(p[6 + per * r]) for r in range(len(records))],
             "drift": drifts,
-            "n_half": [int(n) for n in chosen["counts"]],
+            "n_half": [int(n) for n in (richer or chosen)["counts"]],
             "x_ref": float(x_ref),
             "fit_x": fitted + x_ref,
             "residual": residual,
@@ -908,7 +919,7 @@ def _structure_fitted(problem, richer, chosen):
     from driveid.identify._free_decay_structures import structure_model
 
     lay = richer["layout"]
-    return structure_model(problem.t, richer["theta"], chosen["counts"], problem.per,
+    return structure_model(problem.t, richer["theta"], richer["counts"], problem.per,
                            "drift" in lay, "quad" in lay)
 
 
@@ -973,8 +984,11 @@ def _adequacy_of(verdict, problem, p, covariance_kind):
             + f"; error bars are {covariance_kind}")
     adequacy = Adequacy(whiteness=white,
                         structures=_json_structures(test),
-                        covariance=covariance_kind, notes=tuple(notes))
-    return adequacy.to_dict(), warnings
+                        covariance=covariance_kind, notes=tuple(notes)).to_dict()
+    # adequate: the structure finally fitted (the richer one where chosen) leaves white
+    # prewhitened residuals
+    adequacy["adequate"] = bool(white["white"])
+    return adequacy, warnings
 
 
 def _json_structures(test):
