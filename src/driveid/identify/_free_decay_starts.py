@@ -25,9 +25,13 @@ import math
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
+from driveid.errors import IdentificationError
+from driveid.identify._free_response import GLOBAL_NAMES
+from driveid.identify.logdec import estimate_log_decrement
+from driveid.io.record import Record
 from driveid.signal.envelope import dominant_frequency, noise_std
 
-__all__ = ["sample_starts"]
+__all__ = ["peak_start", "sample_starts"]
 
 #: Periods of the record the start curves are fitted to [-].
 _PERIODS = 20
@@ -137,6 +141,56 @@ def _one_record(t: np.ndarray, x: np.ndarray) -> dict[str, dict]:
             start["release"] = (float(start["curve"](np.array([t_r]))[0]), t_r)
             start["mid_swing"] = bool(t_r < tt[0] - 0.25 * dt)
     return out
+
+
+def peak_start(records, x_ref, mass, stiffness, max_samples):
+    """Start values from the least-squares log decrement; release per record, mid-swing test.
+
+    Parameters
+    ----------
+    records : sequence of Record
+        The free decays.
+    x_ref : float
+        Spring zero [m or rad].
+    mass, stiffness : float or None
+        Known J [kg or kg·m²] or K [N/m or N·m/rad].
+    max_samples : int
+        Samples the peak search is decimated to [-].
+
+    Returns
+    -------
+    (ndarray, list, list of bool)
+        ``glob``, ``(x_r, t_r)`` per record, mid-swing flags.
+    """
+    step = math.ceil(sum(r.n for r in records) / max_samples)
+    shifted = [Record(t=r.t[::step], x=np.asarray(r.x, float)[::step] - float(x_ref),
+                      meta=r.meta, max_jitter=r.max_jitter) for r in records]
+    try:
+        start = estimate_log_decrement(shifted, mass=mass, stiffness=stiffness)
+    except IdentificationError as exc:
+        raise IdentificationError(
+            f"output error needs start values from the peak estimator, which failed: {exc}"
+        ) from None
+    glob = [start.value(n) for n in GLOBAL_NAMES]
+    glob[1:3] = [float(np.clip(z, -0.9, 0.9)) for z in glob[1:3]]
+    glob[0] = max(glob[0], 1e-9)
+    releases, mid_swing = [], []
+    for rec, x, pt, px in zip(shifted, [v.x for v in shifted], start.data_used["peak_t"],
+                              start.data_used["peak_x"], strict=True):
+        noise = max(float(np.std(np.diff(x[:8]))), 1e-9 * float(np.ptp(x)))
+        moving = (pt[0] - rec.t[0] > 3 * rec.dt) and abs(x[0] - px[0]) > 20 * noise
+        if moving:  # the previous velocity zero lies before the first sample
+            s0 = 1 if px[0] > x[0] else -1
+            zeta = glob[1] if s0 > 0 else glob[2]
+            rho = math.exp(-math.pi * zeta / math.sqrt(1 - zeta * zeta))
+            e = -(s0 * glob[3] + glob[4])
+            x_r = e - (px[0] - e) / rho
+            t_r = pt[0] - math.pi / (glob[0] * math.sqrt(1 - zeta * zeta))
+        else:
+            x_r, t_r = float(px[0]), float(pt[0])
+        releases.append((x_r, t_r))
+        mid_swing.append(bool(moving))
+    return np.array(glob), releases, mid_swing
 
 
 def sample_starts(times, values) -> list[tuple[str, np.ndarray, list, list[bool]]]:

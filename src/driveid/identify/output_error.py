@@ -18,9 +18,24 @@ from the start guess and its neighbours are fitted, counts whose fitted reversal
 kinetic friction forbids are rejected, and the survivors are averaged with weights
 ``exp(-Δχ²/2)`` (χ² = RSS/s²); their spread enters the covariance.
 
+Noise model, structure, bounds (issue 24)
+-----------------------------------------
+The white fit's residuals get an AR(p) model (Burg, order by BIC,
+:mod:`driveid.identify._noise`); when it is not white, every candidate is refitted on
+prewhitened residuals ``A(q)(y - f(θ))`` (prediction error, Ljung 1999 §7.3), the model
+re-estimated, 2-3 rounds; the covariance is ``σ_w²(J_wᵀJ_w)⁻¹`` with the prewhitened
+Jacobian. White noise (order 0) leaves the fit and its error bars exactly as before. Nested
+structures (``+ drift``, ``+ quadratic damping``) are tested where the residuals ask for it
+(:mod:`driveid.identify._free_decay_structures`) and the simplest adequate one by BIC is
+reported; an inadequate fit gets sandwich error bars and a warning naming the effect. The
+fit is bounded (ζ± >= 0 when ``passive``, θk_mean >= 0, ω0 > 0); estimates at a bound are
+listed in ``diagnostics["at_bound"]`` with one-sided 95 % limits. Starts come from the
+peaks and from the samples (spectral peak with exponential or linear envelope,
+:mod:`driveid.identify._free_decay_starts`); the best settled one is kept.
+
 Error bars
 ----------
-``s²(JᵀJ)⁻¹`` with ``s² = RSS/(n - p)`` and the exact Jacobian, carried to ``J``/``K``,
+``s²(JᵀJ)⁻¹`` (white) with ``s² = RSS/(n - p)`` and the exact Jacobian, carried to ``J``/``K``,
 ``c_mean``, ``c_delta``, ``fk_mean``, ``fk_delta`` by the delta method. Encoder
 quantisation is not white noise (its errors follow the signal), so for quantised records
 (detected, or ``quantisation=`` the step) the covariance is that of a parametric bootstrap:
@@ -48,13 +63,19 @@ from scipy import stats
 from threadpoolctl import threadpool_limits
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify._adequacy import Adequacy, ljung_box
-from driveid.identify._free_decay_starts import sample_starts
+from driveid.identify._adequacy import ljung_box
+from driveid.identify._free_decay_starts import peak_start, sample_starts
 from driveid.identify._free_decay_structures import (
     StreamWhitener,
     assess,
     noise_rounds,
     simulate_noise,
+)
+from driveid.identify._free_decay_verdict import (
+    adequacy_of,
+    apply_verdict,
+    physics_warnings,
+    structure_fitted,
 )
 from driveid.identify._free_response import (
     GLOBAL_NAMES,
@@ -62,10 +83,9 @@ from driveid.identify._free_response import (
     kinetic_stop_count,
     response,
 )
-from driveid.identify._noise import hac_covariance, white_noise
+from driveid.identify._noise import white_noise
 from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
-from driveid.identify.logdec import estimate_log_decrement
 from driveid.io.record import Record
 from driveid.signal.repair import _interval_blocks
 
@@ -267,7 +287,7 @@ class _Problem:
             offset += t.size
         return _joined(parts), jtj, jtr
 
-    def fit(self, p0, counts, y=None):
+    def fit(self, p0, counts, y=None, max_iter=100):
         target = _joined(self.y) if y is None else y
         lower, upper = self.bounds(p0.size)
         noise, segs = self.noise, self.segments
@@ -291,7 +311,7 @@ class _Problem:
         with np.errstate(over="ignore", invalid="ignore"):
             return _levenberg_marquardt(
                 lambda p: whiten(self.model(p, counts, False)[0]), linearise,
-                whiten(target), np.clip(p0, lower, upper), lower, upper)
+                whiten(target), np.clip(p0, lower, upper), lower, upper, max_iter)
 
 
 class _Solution:
@@ -353,43 +373,10 @@ def _levenberg_marquardt(model, linearise, target, p, lower, upper, max_iter=100
     return _Solution(p, cost, A, jac, status, nfev)
 
 
-def _guess(records, x_ref, mass, stiffness):
-    """Start values from the least-squares log decrement; release per record, mid-swing test."""
-    step = math.ceil(sum(r.n for r in records) / _SEARCH_SAMPLES)
-    shifted = [Record(t=r.t[::step], x=np.asarray(r.x, float)[::step] - float(x_ref),
-                      meta=r.meta, max_jitter=r.max_jitter) for r in records]
-    try:
-        start = estimate_log_decrement(shifted, mass=mass, stiffness=stiffness)
-    except IdentificationError as exc:
-        raise IdentificationError(
-            f"output error needs start values from the peak estimator, which failed: {exc}"
-        ) from None
-    glob = [start.value(n) for n in GLOBAL_NAMES]
-    glob[1:3] = [float(np.clip(z, -0.9, 0.9)) for z in glob[1:3]]
-    glob[0] = max(glob[0], 1e-9)
-    releases, mid_swing = [], []
-    for rec, x, pt, px in zip(shifted, [v.x for v in shifted], start.data_used["peak_t"],
-                              start.data_used["peak_x"], strict=True):
-        noise = max(float(np.std(np.diff(x[:8]))), 1e-9 * float(np.ptp(x)))
-        moving = (pt[0] - rec.t[0] > 3 * rec.dt) and abs(x[0] - px[0]) > 20 * noise
-        if moving:  # the previous velocity zero lies before the first sample
-            s0 = 1 if px[0] > x[0] else -1
-            zeta = glob[1] if s0 > 0 else glob[2]
-            rho = math.exp(-math.pi * zeta / math.sqrt(1 - zeta * zeta))
-            e = -(s0 * glob[3] + glob[4])
-            x_r = e - (px[0] - e) / rho
-            t_r = pt[0] - math.pi / (glob[0] * math.sqrt(1 - zeta * zeta))
-        else:
-            x_r, t_r = float(px[0]), float(pt[0])
-        releases.append((x_r, t_r))
-        mid_swing.append(bool(moving))
-    return np.array(glob), releases, mid_swing
-
-
 def _best_start(records, coarse, x_ref, mass, stiffness):
     """Settle the fit from every start strategy on the search copy; keep the lowest RSS.
 
-    Strategies: the peak log decrement (:func:`_guess`), and from the samples the spectral
+    Strategies: the peak log decrement (``peak_start``), and from the samples the spectral
     peak with an exponential or a linear (Coulomb) envelope (:mod:`._free_decay_starts`), so
     that coarse, mid-swing or Coulomb-tailed records do not hinge on the peak estimator.
     """
@@ -397,7 +384,7 @@ def _best_start(records, coarse, x_ref, mass, stiffness):
     try:
         with warnings.catch_warnings():  # one strategy of several: its complaints are moot
             warnings.simplefilter("ignore")
-            glob, releases, _ = _guess(records, x_ref, mass, stiffness)
+            glob, releases, _ = peak_start(records, x_ref, mass, stiffness, _SEARCH_SAMPLES)
         starts.append(("peaks", glob, releases))
     except IdentificationError as exc:
         failures.append(str(exc))
@@ -408,9 +395,11 @@ def _best_start(records, coarse, x_ref, mass, stiffness):
         p0 = list(glob)
         for x_r, t_r in releases:
             p0 += [x_r, t_r] + ([0.0] if coarse.drift else [])
-        try:
+        try:  # a short fit per start ranks them; only the best is settled
             with np.errstate(over="ignore", invalid="ignore"):
-                p, counts, settled = _settle(coarse, np.array(p0))
+                p = coarse.fit(np.array(p0), _stop_counts(coarse, np.array(p0)),
+                               max_iter=25).x
+                counts = _stop_counts(coarse, p)
                 r = target - coarse.model(p, counts, False)[0]
         except (IdentificationError, np.linalg.LinAlgError, ValueError, OverflowError):
             continue
@@ -418,7 +407,11 @@ def _best_start(records, coarse, x_ref, mass, stiffness):
         if not (np.all(np.isfinite(p)) and math.isfinite(rss)):
             continue
         if best is None or rss < best[0]:
-            best = (rss, p, counts, settled, name)
+            best = (rss, p, name)
+    if best is not None:
+        with np.errstate(over="ignore", invalid="ignore"):
+            p, counts, settled = _settle(coarse, best[1])
+        best = (best[0], p, counts, settled, best[2])
     if best is None:
         detail = f" (the peak estimator: {failures[0]})" if failures else ""
         raise IdentificationError(
@@ -593,7 +586,8 @@ def estimate_output_error(
                 c["cov"] = boot
         p, cov, weights = _combine(candidates)
         verdict = assess(problem, chosen, p)
-        p, cov, covariance_kind = _apply_verdict(problem, verdict, candidates, p, cov, quantum)
+        p, cov, covariance_kind = apply_verdict(problem, verdict, candidates, p, cov, quantum,
+                                                _combine)
         est = _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum,
                         mass, stiffness, x_ref, bootstrap, verdict, covariance_kind,
                         start_name)
@@ -742,7 +736,7 @@ def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progres
         else:
             noisy = fitted + (gen.normal(0.0, extra, fitted.size) if extra > 0 else 0.0)
         y_b = quantum * np.round((noisy - phase) / quantum) + phase
-        sol = problem.fit(chosen["p"], chosen["counts"], y=y_b)
+        sol = problem.fit(chosen["p"], chosen["counts"], y=y_b, max_iter=10)
         if sol.status > 0 and np.all(np.isfinite(sol.x)):
             estimates.append(sol.x)
             # whiteness statistic of a record that fits the model exactly: quantisation
@@ -757,36 +751,6 @@ def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progres
             f"only {len(estimates)} of {replicates} bootstrap refits converged; the error bars "
             "of this quantised record cannot be trusted (record more cycles or a finer encoder)")
     return replicate_covariance(estimates)
-
-
-def _apply_verdict(problem, verdict, candidates, p, cov, quantum):
-    """Take a chosen richer structure's fit, or widen inadequate error bars (sandwich)."""
-    richer = verdict["richer"]
-    if richer is not None:
-        theta, jac = richer["theta"], richer["jac"]
-        n_w = richer["white_residual"].size
-        s2_w = richer["rss"] / max(n_w - theta.size, 1)
-        try:
-            cov_s = np.linalg.inv(jac.T @ jac) * s2_w
-        except np.linalg.LinAlgError:
-            cov_s = np.full((theta.size, theta.size), np.nan)
-        if not richer["whiteness"]["white"]:
-            cov_s = hac_covariance(jac, richer["white_residual"])
-            return theta, cov_s, "sandwich"
-        return theta, cov_s, "prewhitened"
-    if verdict["whiteness"]["white"] or quantum is not None:
-        return p, cov, "bootstrap" if quantum is not None else "prewhitened"
-    sol = min(candidates, key=lambda c: c["rss"])["sol"]
-    if sol.jac is None:  # long record: no whole Jacobian for the sandwich
-        return p, cov, "prewhitened (sandwich not formed above 131 072 samples)"
-    r_w = problem.noise.whiten(np.concatenate(problem.y)
-                               - problem.model(sol.x, min(candidates, key=lambda c: c["rss"])
-                                               ["counts"], False)[0], problem.segments)
-    hac = hac_covariance(sol.jac, r_w)
-    for c in candidates:
-        c["cov"] = hac
-    p, cov, _ = _combine(candidates)
-    return p, cov, "sandwich"
 
 
 def replicate_covariance(replicates: Sequence[np.ndarray]) -> np.ndarray:
@@ -856,18 +820,18 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
                 and params[n].value - lower[i] <= 1e-3 * params[n].stderr]
     if quad is not None and p[quad] <= 1e-3 * se[quad]:
         at_bound.append("zeta_quad")
-    warnings = _physics_warnings(params, at_bound, x_ref, u, problem.passive)
+    warnings = physics_warnings(params, at_bound, x_ref, u, _ZETA_BOUND)
     per = problem.per
     mid_swing = [bool(p[6 + per * r] < t[0] - 0.5 * float(np.median(np.diff(t[:64]))))
                  for r, t in enumerate(problem.t)]
     if any(mid_swing):
         warnings.append("a record starts mid-swing: its release is the velocity zero before "
                         "the first sample (extrapolated)")
-    adequacy, adequacy_warnings = _adequacy_of(verdict, problem, p, covariance_kind)
+    adequacy, adequacy_warnings = adequacy_of(verdict, problem, p, covariance_kind)
     warnings += adequacy_warnings
     if richer is not None:
         residual = richer["residual"] if richer["step"] == 1 else \
-            _joined(problem.y) - _structure_fitted(problem, richer, chosen)
+            _joined(problem.y) - structure_fitted(problem, richer)
         fitted = _joined(problem.y) - residual
         drift_at = richer["layout"].get("drift")
     else:
@@ -913,87 +877,3 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
             "one_sided_95": one_sided,
         },
     )
-
-
-def _structure_fitted(problem, richer, chosen):
-    from driveid.identify._free_decay_structures import structure_model
-
-    lay = richer["layout"]
-    return structure_model(problem.t, richer["theta"], richer["counts"], problem.per,
-                           "drift" in lay, "quad" in lay)
-
-
-def _physics_warnings(params, at_bound, x_ref, u, passive):
-    """Warnings for estimates at a bound or outside physics, each naming the likely cause."""
-    warnings = []
-    for name in ("zeta_plus", "zeta_minus"):
-        z = params[name].value
-        if name in at_bound:
-            warnings.append(
-                f"{name} is at its bound 0 (95 % one-sided upper limit "
-                f"{z + 1.645 * params[name].stderr:.3g}): the record shows no viscous damping "
-                "in that direction; Coulomb friction or an amplitude-dependent damping the "
-                "model lacks may be taking its place (driveid identify hilbert shows the "
-                "damping against amplitude)")
-        elif not 0.0 < z < _ZETA_BOUND - 1e-6:
-            warnings.append(
-                f"{name} = {z:.4g} is outside (0, 1): the decay is not an underdamped passive "
-                "oscillation (negative damping from feedback, or a bad fit); check the record")
-    tkm = params["theta_k_mean"]
-    if "theta_k_mean" in at_bound:
-        warnings.append(
-            f"theta_k_mean is at its bound 0 {u['x']}: no Coulomb friction is resolved (95 % "
-            f"one-sided upper limit {1.645 * tkm.stderr:.3g} {u['x']}); a decay that slows "
-            "less than exponentially at small amplitude (quadratic damping) pushes it there")
-    tkd = params["theta_k_delta"]
-    if x_ref == 0.0 and abs(tkd.value) > abs(tkm.value) + 2 * tkd.stderr:
-        # |fk_delta| > fk_mean means one direction's kinetic friction pushes: far more
-        # likely an encoder zero away from the spring's rest position than physics
-        warnings.append(
-            f"|fk_delta| exceeds fk_mean ({tkd.value:.3g} vs {tkm.value:.3g} {u['x']} as "
-            "theta_k): one direction's friction would push; an offset between the encoder "
-            "zero and the spring zero looks the same (not identifiable from a free decay) - "
-            "pass the spring zero with x_ref (CLI: --x-ref)")
-    return warnings
-
-
-def _adequacy_of(verdict, problem, p, covariance_kind):
-    """Return the Adequacy record and its warnings (inadequate: what the residuals show)."""
-    from driveid.identify._free_decay_structures import inadequacy_notes
-
-    richer = verdict["richer"]
-    test = verdict["structures"]
-    white = richer["whiteness"] if richer is not None else verdict["whiteness"]
-    notes, warnings = [], []
-    if test is not None:
-        notes.append(test["comparison"]["reason"])
-    if not white["white"]:
-        if richer is not None:
-            w_res, raw = richer["white_residual"], richer["residual"]
-        else:
-            raw, w_res = verdict["raw_residual"], verdict["white_residual"]
-        dt = float(np.median(np.diff(problem.t[0][:256])))
-        omega_d = float(p[0]) * math.sqrt(max(1.0 - float(p[1]) ** 2, 1e-12))
-        found = inadequacy_notes(w_res, raw, 1.0 / dt, omega_d,
-                                 test["comparison"] if test else None)
-        notes += found
-        warnings.append(
-            "no structure tried (viscous + Coulomb, + drift, + quadratic damping) explains "
-            "this record: its prewhitened residuals are not white (Ljung-Box p = "
-            f"{white['p_value']:.2g}); " + "; ".join(found)
-            + f"; error bars are {covariance_kind}")
-    adequacy = Adequacy(whiteness=white,
-                        structures=_json_structures(test),
-                        covariance=covariance_kind, notes=tuple(notes)).to_dict()
-    # adequate: the structure finally fitted (the richer one where chosen) leaves white
-    # prewhitened residuals
-    adequacy["adequate"] = bool(white["white"])
-    return adequacy, warnings
-
-
-def _json_structures(test):
-    if test is None:
-        return None
-    comp = dict(test["comparison"])
-    comp["decimation"] = int(test["step"])
-    return comp
