@@ -71,14 +71,45 @@ def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
 
 
 def structure_fitted(problem, richer):
-    """Return the fitted response of a richer structure on every fitted sample."""
+    """Return the fitted response of a richer structure on every fitted sample.
+
+    Parameters
+    ----------
+    problem : output_error._Problem
+        The fit problem.
+    richer : dict
+        The structure's fit (``theta``, ``counts``, ``layout``).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Position [m or rad].
+    """
     lay = richer["layout"]
     return structure_model(problem.t, richer["theta"], richer["counts"], problem.per,
                            "drift" in lay, "quad" in lay)
 
 
 def physics_warnings(params, at_bound, x_ref, u, zeta_bound):
-    """Warnings for estimates at a bound or outside physics, each naming the likely cause."""
+    """Warnings for estimates at a bound or outside physics, each naming the likely cause.
+
+    Parameters
+    ----------
+    params : dict
+        Name -> Parameter of the estimate.
+    at_bound : list of str
+        Names at their bound.
+    x_ref : float
+        Spring zero [m or rad].
+    u : dict
+        Units by kind (``x``, ``c`` ...).
+    zeta_bound : float
+        Largest damping ratio of the model [-].
+
+    Returns
+    -------
+    list of str
+    """
     warnings = []
     for name in ("zeta_plus", "zeta_minus"):
         z = params[name].value
@@ -112,7 +143,24 @@ def physics_warnings(params, at_bound, x_ref, u, zeta_bound):
 
 
 def adequacy_of(verdict, problem, p, covariance_kind):
-    """Return the Adequacy record and its warnings (inadequate: what the residuals show)."""
+    """Return the Adequacy record (JSON form) and its warnings.
+
+    Parameters
+    ----------
+    verdict : dict
+        :func:`~driveid.identify._free_decay_structures.assess` output.
+    problem : output_error._Problem
+        The fit problem.
+    p : ndarray, shape (k,)
+        The estimate.
+    covariance_kind : str
+        How the error bars were formed.
+
+    Returns
+    -------
+    (dict, list of str)
+        Adequacy and warnings (inadequate: what the residuals show, the command that fits it).
+    """
     richer = verdict["richer"]
     test = verdict["structures"]
     white = richer["whiteness"] if richer is not None else verdict["whiteness"]

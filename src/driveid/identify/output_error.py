@@ -582,6 +582,12 @@ def estimate_output_error(
         if quantum is not None:
             boot = _bootstrap_covariance(problem, chosen, s2, quantum, bootstrap, rng,
                                          progress)
+            if not problem.noise.is_white:
+                # coloured: the larger of the bootstrap and the prewhitened analytic error
+                # bars (replicates of an estimated AR spectrum came out ~30 % short on
+                # AR(1) 0.9 with 0.01 rad steps)
+                if np.mean(np.diag(chosen["cov"])[:5] / np.diag(boot)[:5]) > 1.0:
+                    boot = chosen["cov"]
             for c in candidates:
                 c["cov"] = boot
         p, cov, weights = _combine(candidates)
@@ -731,13 +737,17 @@ def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progres
     problem.boot_q = []
     for k in range(replicates):
         phase = gen.uniform(0.0, quantum)
-        if extra > 0 and not noise.is_white:
-            noisy = fitted + simulate_noise(noise, problem.segments, extra**2, gen)
+        if not noise.is_white:
+            # the AR model already holds the rounding's white floor; re-quantising adds it
+            # again, but taking it out of the total would thin the low frequencies that set
+            # the error bars: the full fitted spectrum, conservative by q²/12
+            noisy = fitted + simulate_noise(noise, problem.segments, noise.variance, gen)
         else:
             noisy = fitted + (gen.normal(0.0, extra, fitted.size) if extra > 0 else 0.0)
         y_b = quantum * np.round((noisy - phase) / quantum) + phase
-        sol = problem.fit(chosen["p"], chosen["counts"], y=y_b, max_iter=10)
-        if sol.status > 0 and np.all(np.isfinite(sol.x)):
+        sol = problem.fit(chosen["p"], chosen["counts"], y=y_b, max_iter=30)
+        # from the optimum, 30 iterations that still gain are near the replicate's own
+        if sol.status >= 0 and np.all(np.isfinite(sol.x)):
             estimates.append(sol.x)
             # whiteness statistic of a record that fits the model exactly: quantisation
             # alone makes residuals non-white, so the observed one is judged against these
