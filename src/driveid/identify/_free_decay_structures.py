@@ -421,6 +421,8 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
             return first
         model = fit_noise_model(resid, segments=problem.segments, n_params=n_par)
         if _same_noise(model, problem.noise):
+            if model.is_white:  # the white fit stands; report the model actually fitted
+                problem.noise = model
             break
         previous = problem.noise
         problem.noise = model

@@ -823,7 +823,8 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
         if quad is not None:  # q = 4 c2 / (3 pi J)
             scale = 0.75 * math.pi * phys["J"]
             params["c_quad"] = Parameter(scale * float(p[quad]), scale * float(se[quad]),
-                                         f"{u['c']}/({u['x']}/s)")
+                                         "N·s²/m²" if u["x"] == "m"
+                                         else f"N·m·s²/{u['x']}²")
     lower, _ = problem.bounds(5)
     # at a bound: within a thousandth of a standard error of it (the fits stop there)
     at_bound = [n for i, n in enumerate(GLOBAL_NAMES) if i in (1, 2, 3)
