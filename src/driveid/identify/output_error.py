@@ -98,6 +98,8 @@ _ZETA_BOUND = 0.999  # |ζ| < 1: the model is underdamped by construction
 #: Above this many samples the stop-count search and the start values use a decimated
 #: copy; the final fits use every sample (so the efficiency is unchanged).
 _SEARCH_SAMPLES = 60_000
+#: Samples of the copy the start strategies are ranked on [-].
+_RANK_SAMPLES = 2000
 #: Most samples of the final fit; longer records are fitted on every k-th sample. White noise
 #: stays white and the model is exact at the kept times, so the estimate stays unbiased and
 #: its error bars honest (variance ~k times the full record's bound). No anti-alias filter:
@@ -389,18 +391,20 @@ def _best_start(records, coarse, x_ref, mass, stiffness):
     except IdentificationError as exc:
         failures.append(str(exc))
     starts += [(name, glob, rel) for name, glob, rel, _ in sample_starts(coarse.t, coarse.y)]
-    target = _joined(coarse.y)
+    # starts are ranked by settled fits on a copy of ~2000 samples; the best is settled
+    # on the search copy (a merely short fit ranks a wrong local minimum first)
+    step = max(1, coarse.n // _RANK_SAMPLES)
+    rank = coarse.decimated(step) if step > 1 else coarse
+    target = _joined(rank.y)
     best = None
     for name, glob, releases in starts:
         p0 = list(glob)
         for x_r, t_r in releases:
             p0 += [x_r, t_r] + ([0.0] if coarse.drift else [])
-        try:  # a short fit per start ranks them; only the best is settled
+        try:
             with np.errstate(over="ignore", invalid="ignore"):
-                p = coarse.fit(np.array(p0), _stop_counts(coarse, np.array(p0)),
-                               max_iter=25).x
-                counts = _stop_counts(coarse, p)
-                r = target - coarse.model(p, counts, False)[0]
+                p, counts, _ = _settle(rank, np.array(p0), max_iter=25)
+                r = target - rank.model(p, counts, False)[0]
         except (IdentificationError, np.linalg.LinAlgError, ValueError, OverflowError):
             continue
         rss = float(r @ r)
@@ -654,11 +658,11 @@ def _refine(problem, coarse, candidates):
     return out
 
 
-def _settle(problem, p):
+def _settle(problem, p, max_iter=100):
     """Refit until the stop count the kinetic friction allows agrees with the fit's own."""
     counts = _stop_counts(problem, p)
     for _ in range(12):  # a peak start off by many half cycles walks ~2-6 per refit
-        sol = problem.fit(p, counts)
+        sol = problem.fit(p, counts, max_iter=max_iter)
         p = sol.x
         new = _stop_counts(problem, p)
         if new == counts:
