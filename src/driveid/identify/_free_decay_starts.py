@@ -65,13 +65,19 @@ def _motion_start(t: np.ndarray, x: np.ndarray) -> int:
 
 
 def _release(curve, t0: float, omega: float) -> float:
-    """Time of the last velocity zero of ``curve`` in ``(t0 - π/ω, t0]``."""
-    grid = t0 - np.linspace(math.pi / omega, 0.0, 2001)
+    """Time of the last velocity zero of ``curve`` in ``(t0 - 0.95π/ω, t0 + 0.05π/ω)``.
+
+    The window stops short of the zero half a period before a release at ``t0`` (the same
+    data, one invisible half cycle earlier).
+    """
+    grid = t0 + np.linspace(-0.95, 0.05, 2001) * math.pi / omega
     v = np.gradient(curve(grid), grid)
     change = np.nonzero(np.sign(v[1:]) != np.sign(v[:-1]))[0]
     if not change.size:
         return t0
     i = int(change[-1])
+    if grid[i] > t0:  # the zero at the first sample itself (released there)
+        return t0
     frac = v[i] / (v[i] - v[i + 1]) if v[i] != v[i + 1] else 0.0
     return float(grid[i] + frac * (grid[i + 1] - grid[i]))
 

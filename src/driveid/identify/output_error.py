@@ -410,7 +410,7 @@ def _best_start(records, coarse, x_ref, mass, stiffness):
         rss = float(r @ r)
         if not (np.all(np.isfinite(p)) and math.isfinite(rss)):
             continue
-        if best is None or rss < best[0]:
+        if best is None or rss < best[0] * (1.0 - 1e-6):  # ties: the earlier (peaks)
             best = (rss, p, name)
     if best is not None:
         with np.errstate(over="ignore", invalid="ignore"):
