@@ -151,6 +151,8 @@ def test_coulomb_dominated_500_s(tmp_path):
     rec = read_record(path, max_jitter=None)
     est = estimate_output_error(rec, mass=truth["J"], rng=2)
     assert est.diagnostics["structure"] == "viscous + Coulomb"
+    assert est.diagnostics["adequacy"]["adequate"]
+    assert est.data_used["release_t"][0] == pytest.approx(-0.7, abs=0.01)  # mid-swing start
     assert est.value("zeta_plus") >= 0 and est.value("zeta_minus") >= 0
     assert est.value("c_mean") >= 0
     # Coulomb friction dominates the decay: within 2 % (the issue saw 2-3x)
