@@ -404,7 +404,7 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
     (list of dict, dict)
         The refitted candidates and the chosen one (unchanged when the residuals are white).
     """
-    y = np.concatenate(problem.y)
+    y = (problem.y[0] if len(problem.y) == 1 else np.concatenate(problem.y))
     white_rss = None
     first = (candidates, chosen)
     for _ in range(rounds):
@@ -490,7 +490,7 @@ def assess(problem, chosen, p, *, run_structures: bool | None = None) -> dict:
         ``structures`` (the test or None), ``richer`` (the full-record fit of a chosen
         richer structure, or None), ``notes``.
     """
-    y = np.concatenate(problem.y)
+    y = (problem.y[0] if len(problem.y) == 1 else np.concatenate(problem.y))
     raw = y - problem.model(p, chosen["counts"], False)[0]
     noise = problem.noise
     white_r = noise.whiten(raw, problem.segments)

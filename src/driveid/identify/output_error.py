@@ -308,7 +308,8 @@ class _Problem:
                 r, jac = whiten(target - f), whiten(jac)
                 return r, jac.T @ jac, jac.T @ r, jac
             f, jtj, jtr = self.normal_equations(p, counts, target, noise)
-            return whiten(target - f), jtj, jtr, None
+            np.subtract(target, f, out=f)  # the residual in place: one n-vector less
+            return whiten(f), jtj, jtr, None
 
         with np.errstate(over="ignore", invalid="ignore"):
             return _levenberg_marquardt(
