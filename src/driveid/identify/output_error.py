@@ -62,7 +62,7 @@ import numpy as np
 from scipy import stats
 from threadpoolctl import threadpool_limits
 
-from driveid.errors import IdentificationError, ParameterError
+from driveid.errors import IdentificationError, ParameterError, RecordWarning
 from driveid.identify._adequacy import ljung_box
 from driveid.identify._free_decay_starts import peak_start, sample_starts
 from driveid.identify._free_decay_structures import (
@@ -384,13 +384,18 @@ def _best_start(records, coarse, x_ref, mass, stiffness):
     that coarse, mid-swing or Coulomb-tailed records do not hinge on the peak estimator.
     """
     starts, failures = [], []
-    try:
-        with warnings.catch_warnings():  # one strategy of several: its complaints are moot
-            warnings.simplefilter("ignore")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
             glob, releases, _ = peak_start(records, x_ref, mass, stiffness, _SEARCH_SAMPLES)
-        starts.append(("peaks", glob, releases))
-    except IdentificationError as exc:
-        failures.append(str(exc))
+            starts.append(("peaks", glob, releases))
+        except IdentificationError as exc:
+            failures.append(str(exc))
+    # the peak start's resampling is said (the fit itself uses the actual timestamps); its
+    # peak-shape complaints are moot for one start of several
+    for w in caught:
+        if issubclass(w.category, RecordWarning):
+            warnings.warn(w.message, stacklevel=3)
     starts += [(name, glob, rel) for name, glob, rel, _ in sample_starts(coarse.t, coarse.y)]
     # starts are ranked by settled fits on a copy of ~2000 samples; the best is settled
     # on the search copy (a merely short fit ranks a wrong local minimum first)
