@@ -338,6 +338,8 @@ def compare(record: Record, estimate: Estimate, *, index: int | None = None,
     (True, True)
     """
     y_hat, held_out, model = _simulate(record, estimate, index, inertia)
+    if "noise_model" in estimate.diagnostics:  # the fit's own AR noise model (issue 24)
+        model = {**model, "noise_model": estimate.diagnostics["noise_model"]}
     y = np.asarray(record.x, float)
     resid = y - y_hat
     spread = float(np.linalg.norm(y - np.mean(y)))

@@ -74,3 +74,37 @@ def test_required_duration_refuses_impossible_and_bad_targets():
     with pytest.raises(ParameterError, match="underdamped"):
         free_decay_crlb({"J": 1.0, "K": 1.0, "c_mean": 3.0}, fs=100, duration=10, x0=1,
                         noise_std=0.01)
+
+
+def test_coloured_noise_bound():
+    """The coloured-noise bound: φ = 0 is the white bound; AR(1) is the exact Gaussian one."""
+    white = free_decay_crlb(P, fs=100, duration=30, x0=10, noise_std=0.01)
+    zero = free_decay_crlb(P, fs=100, duration=30, x0=10, noise_std=0.01, noise_ar=[0.0])
+    for name in ("omega0", "c_mean", "fk_mean"):
+        # σ_w = σ for φ = 0 and A(q) = 1; only the first of 3001 samples is conditioned on
+        # (dropped), and it is the release itself: 0.3 % measured, 1 % allowed
+        assert zero[name] == pytest.approx(white[name], rel=0.01)
+    # independent truth: the exact Gaussian Fisher information Jᵀ Σ⁻¹ J with the AR(1)
+    # Toeplitz covariance σ² φ^|i-j|
+    from scipy.linalg import toeplitz
+
+    from driveid.identify._free_response import kinetic_stop_count, response
+    from driveid.identify.crlb import _base
+
+    phi, fs, duration = 0.9, 20.0, 15.0
+    red = free_decay_crlb(P, fs=fs, duration=duration, x0=10, noise_std=0.01,
+                          noise_ar=[phi])
+    t = np.arange(int(duration * fs) + 1) / fs
+    base = _base(P)
+    n_half, _ = kinetic_stop_count(base, 10.0, 0.0, float(t[-1]))
+    _, jac, _ = response(t, base, 10.0, 0.0, n_half)
+    sigma = 0.01**2 * toeplitz(phi ** np.arange(t.size))
+    # p(x) = p(x_1) p(x_2.. | x_1): the conditional information is the exact one less the
+    # first sample's own, j_1 j_1ᵀ / σ² (exact for AR(1))
+    fisher = jac.T @ np.linalg.solve(sigma, jac) - np.outer(jac[0], jac[0]) / 0.01**2
+    cov = np.linalg.inv(fisher)
+    for i, name in enumerate(("omega0", "zeta_plus", "zeta_minus", "theta_k_mean")):
+        # two routes to the same matrix: round-off of a Toeplitz solve (cond ~1e6)
+        assert red[name] == pytest.approx(math.sqrt(cov[i, i]), rel=1e-6), name
+    with pytest.raises(ParameterError, match="stationary"):
+        free_decay_crlb(P, fs=100, duration=30, x0=10, noise_std=0.01, noise_ar=[1.1])

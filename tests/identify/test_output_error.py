@@ -142,6 +142,7 @@ def test_non_uniform_time():
     rec = Record(t=exact.t, x=exact.x + rng.normal(0, 0.01, exact.n), max_jitter=None)
     with pytest.warns(RecordWarning, match="resampled"):  # the peak start values only
         est = estimate_output_error(rec, mass=1.0)
+    assert est.data_used["fit_x"].size == rec.n
     for name, truth in TRUTH.items():
         assert abs(est.value(name) - truth) < 4 * est.stderr(name), name
 

@@ -151,5 +151,10 @@ def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, b
                                     change="the last 20 % of the window dropped")
     counts = (f"samples: {est.diagnostics.get('n_samples')}" if method == "oe"
               else f"peaks: {est.diagnostics.get('n_peaks')}")
+    if method == "oe" and "structure" in est.diagnostics:
+        # which structure and noise model were chosen, and why (issue 24)
+        noise = est.diagnostics["noise_model"]
+        counts += (f"   structure: {est.diagnostics['structure']}   noise: {noise['kind']} "
+                   f"(n_eff {noise['n_eff']:.0f})")
     emit(est, output_opts, records=records, figure=figure,
          header=f"method: {est.method}   {counts}")

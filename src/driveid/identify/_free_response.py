@@ -100,7 +100,7 @@ SINK_ROWS = 1 << 17
 
 
 def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
-             jacobian: bool = True, sink=None):
+             jacobian: bool = True, sink=None, zeta_amp: float = 0.0):
     """Exact free response sampled at ``t`` and its Jacobian.
 
     Parameters
@@ -122,6 +122,11 @@ def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
         ``x_rows = x[lo:hi]`` (final) and ``jac_rows`` an ``(hi - lo, 7)`` array or a
         read-only broadcast view, valid only during the call. Memory is then O(SINK_ROWS) for the
         derivatives instead of 56 B a sample (issue 12: normal equations built blockwise).
+    zeta_amp : float
+        Amplitude-dependent damping ``q`` [1/(m or rad)]: half cycle ``k`` uses
+        ``ζ_k = ζ_s + q |x_{k-1} - e_k|``, the equivalent linearisation of quadratic
+        (aerodynamic) damping ``c₂|x'|x'`` (``q = 4 c₂/(3π J)``, Krylov–Bogoliubov); only
+        without ``jacobian`` (the structure test differentiates numerically).
 
     Returns
     -------
@@ -137,6 +142,8 @@ def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
     n = t.size
     x = np.empty(n)
     jacobian = jacobian or sink is not None
+    if zeta_amp and jacobian:
+        raise ValueError("response: zeta_amp has no analytic Jacobian; pass jacobian=False")
     # with a sink the derivatives go to it block by block: no n x 7 array
     jac = np.zeros((n, 7)) if jacobian and sink is None else None
 
@@ -160,10 +167,12 @@ def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
     reversals = [(T, X)]
     for _k in range(int(n_half)):
         zeta, iz = (zp, 1) if s > 0 else (zm, 2)
-        root = math.sqrt(1.0 - zeta * zeta)
-        sigma, wd = zeta * omega0, omega0 * root
         e = -(s * tkm + tkd)
         A = X - e
+        if zeta_amp:
+            zeta = min(max(zeta + zeta_amp * abs(A), 0.0), 0.999)
+        root = math.sqrt(1.0 - zeta * zeta)
+        sigma, wd = zeta * omega0, omega0 * root
         T_end = T + math.pi / wd
         i1 = int(np.searchsorted(t, T_end, "left"))
         # one block without a sink (as before); blocks of SINK_ROWS rows with one

@@ -17,10 +17,11 @@ treat the bound as a guide there.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+from scipy.signal import lfilter
 
 from driveid.errors import IdentificationError, ParameterError
 from driveid.identify._free_response import GLOBAL_NAMES, kinetic_stop_count, response
@@ -61,6 +62,7 @@ def free_decay_crlb(
     known: str = "J",
     n_half: int | None = None,
     drift: bool = False,
+    noise_ar: Sequence[float] | None = None,
 ) -> dict[str, float]:
     """Cramér–Rao standard deviations of the free-decay parameters for one record design.
 
@@ -84,6 +86,11 @@ def free_decay_crlb(
         Half cycles before the stop [-]; default: where kinetic friction stops the body.
     drift : bool
         Include a linear drift as a nuisance unknown.
+    noise_ar : sequence of float, optional
+        Coloured noise: AR coefficients ``a_1 … a_p`` [-] of ``e_t = Σ a_j e_{t-j} + w_t``
+        (a long AR fit approximates any smooth spectrum); ``noise_std`` is then the
+        standard deviation of ``e`` itself. The bound is ``σ_w² (J_wᵀ J_w)⁻¹`` with the
+        prewhitened Jacobian ``J_w = A(q) J`` (Whittle; the first p samples conditioned on).
 
     Returns
     -------
@@ -118,7 +125,20 @@ def free_decay_crlb(
     _, jac, _ = response(t, base, float(x0), 0.0, max(int(n_half), 1))
     if drift:
         jac = np.column_stack([jac, t])
-    fisher = jac.T @ jac / noise_std**2
+    if noise_ar is not None and len(noise_ar):
+        a = np.concatenate([[1.0], -np.asarray(noise_ar, float)])
+        if np.max(np.abs(np.roots(a))) >= 1.0:
+            raise ParameterError("noise_ar must describe a stationary AR process (all poles "
+                                 "inside the unit circle)")
+        # σ_w² = γ₀ / Σ h_k² with h the impulse response of 1/A(q)
+        pulse = np.zeros(200_000)
+        pulse[0] = 1.0
+        h = lfilter([1.0], a, pulse)
+        sigma_w2 = noise_std**2 / float(h @ h)
+        jw = lfilter(a, [1.0], jac, axis=0)[a.size - 1:]
+        fisher = jw.T @ jw / sigma_w2
+    else:
+        fisher = jac.T @ jac / noise_std**2
     try:
         cov = np.linalg.inv(fisher)
     except np.linalg.LinAlgError:

@@ -235,7 +235,7 @@ def _view(est: Any) -> dict[str, Any]:
         "params": params,
         "inputs": [_input_view(i) for i in est.inputs],
         "warnings": list(est.warnings),
-        "diagnostics": [(k, _short(v)) for k, v in est.diagnostics.items()],
+        "diagnostics": [(k, _diagnostic(k, v)) for k, v in est.diagnostics.items()],
         "correlation": _correlation(est.covariance),
     }
 
@@ -374,6 +374,23 @@ def _num(value: Any, digits: int) -> str:
     if not math.isfinite(value):
         return "—"
     return f"{value:.{digits}g}"
+
+
+def _diagnostic(key: str, value: Any) -> str:
+    """One diagnostic as text; the noise model and adequacy of a fit in plain words."""
+    if key == "noise_model" and isinstance(value, dict):
+        coeffs = ", ".join(_num(a, 3) for a in value.get("ar", [])[:6])
+        more = " …" if len(value.get("ar", [])) > 6 else ""
+        return (f"{value.get('kind')} ({coeffs}{more}); innovation sd "
+                f"{_num(value.get('innovation_std') or float('nan'), 3)}, "
+                f"n_eff {_num(value.get('n_eff', float('nan')), 4)} of {value.get('n')}")
+    if key == "adequacy" and isinstance(value, dict):
+        white = value.get("whiteness") or {}
+        words = "adequate" if value.get("adequate") else "NOT adequate"
+        return (f"{words}: Ljung-Box p = {_num(white.get('p_value', float('nan')), 3)}; "
+                f"error bars {value.get('covariance')}; "
+                + " ".join(value.get("notes", []))[:300])
+    return _short(value)
 
 
 def _short(value: Any) -> str:
