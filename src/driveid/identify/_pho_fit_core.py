@@ -170,17 +170,16 @@ def project(theta: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarr
 
 def at_bounds(theta: np.ndarray, free: Sequence[int], lower: np.ndarray,
               tol: float = 1e-9) -> list[str]:
-    """Names of the constraints active at ``theta`` (``"c_minus = 0"``, ``"e_plus = 0"``)."""
+    """Name the constraints active at ``theta`` (``"c_mean - c_delta = 0"``, ``"K = 0"``)."""
     names = []
     scale = {1: abs(theta[1]) + abs(theta[2]), 4: abs(theta[4]) + abs(theta[5])}
     for mean, delta, label in ((1, 2, "c"), (4, 5, "fk")):
         if mean in free and delta in free:
             s = max(scale[mean], 1e-300)
             if theta[mean] + theta[delta] <= tol * s:
-                names.append(f"{label}_plus = c_mean + c_delta = 0" if label == "c"
-                             else "fk_mean + fk_delta = 0")
+                names.append(f"{label}_mean + {label}_delta = 0")
             if theta[mean] - theta[delta] <= tol * s:
-                names.append(f"{label}_minus = 0")
+                names.append(f"{label}_mean - {label}_delta = 0")
     if 0 in free and theta[0] <= lower[0] * (1 + 1e-9):
         names.append("J at its lower bound")
     if 3 in free and theta[3] <= 0.0:

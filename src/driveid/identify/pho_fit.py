@@ -196,10 +196,16 @@ def _public_covariance(names, cov):
     return out, T @ cov @ T.T
 
 
-def _band_report(theta, chosen, cov, cov_free, bracketed, unit):
-    """Return the static band of the chosen structure (None when static = kinetic was kept)."""
+def _band_report(theta, chosen, cov, cov_free, bracketed, unit, fits):
+    """Return the static band fitted (``chosen`` False where static = kinetic was kept)."""
     if core.BAND[0] not in chosen["free"]:
-        return None
+        if len(fits) < 2:
+            return None
+        # the band structure was fitted but not kept: report what it found, unchosen
+        rich = fits[1]
+        out = _band_report(rich["theta"], rich, cov, cov_free, list(core.BAND), unit, fits)
+        out["chosen"] = False
+        return out
     fs_mean, fs_delta = core.band_from_excess(theta)
     fk_plus, fk_minus = theta[5] + theta[4], theta[5] - theta[4]
     out = {"fs_mean": fs_mean, "fs_delta": fs_delta, "fs_mean_se": math.nan,
@@ -207,7 +213,7 @@ def _band_report(theta, chosen, cov, cov_free, bracketed, unit):
            "edge_plus": fs_delta + fs_mean, "edge_minus": fs_delta - fs_mean,
            "excess_plus": float(theta[7]), "excess_minus": float(theta[8]),
            "ratio_mean": fs_mean / theta[4] if theta[4] > 0 else math.nan,
-           "measured": not bracketed}
+           "measured": not bracketed, "chosen": True}
     if not bracketed:
         rows = [cov_free.index(i) for i in (4, 5, 7, 8)]
         G = core.band_jacobian()
@@ -229,7 +235,7 @@ def _finite(v):
 def _adequacy_notes(comparison, chosen, fits, static, band):
     notes = [comparison["reason"]] if static == "auto" else [
         f"'{chosen['structure'].name}' imposed (static={static!r})"]
-    if band is not None and not band["measured"]:
+    if band is not None and band["chosen"] and not band["measured"]:
         notes.append(
             "the runs end stuck inside the static band without breaking away again, so they "
             "bracket its edges rather than measure them: upper edge fs_delta + fs_mean in "
@@ -238,6 +244,20 @@ def _adequacy_notes(comparison, chosen, fits, static, band):
             "edge bounded on one side only, the least the rest positions demand) is "
             "reported, without a standard error")
     return notes
+
+
+def _stuck_outside(problem, theta, quantum):
+    """Warn where runs end at rest with a holding force outside the fitted kinetic band."""
+    forces = problem.end_forces(theta, quantum)
+    margin = 0.03 * float(theta[4])  # 3 % of fk: the rest position's own uncertainty
+    plus, minus = theta[5] + theta[4], theta[5] - theta[4]
+    outside = int(np.sum((forces > plus + margin) | (forces < minus - margin)))
+    if not outside:
+        return []
+    worst = float(np.max(np.abs(forces - theta[5])) / max(theta[4], 1e-300))
+    return [f"{outside} run(s) end at rest where the loop pushes with up to {worst:.3g} times "
+            "the kinetic friction: static friction is above kinetic, which this fit assumes "
+            "equal (static='kinetic'); pass --static auto to fit the static band"]
 
 
 def _interval(pair):
@@ -311,15 +331,28 @@ def estimate_pho_output_error(
         fit). The loop that held the axis may leave it off the commanded ``x0``.
     progress : callable, optional
         Called as ``progress(done, total)`` after each bootstrap replicate.
+    static : {"auto", "kinetic", "band"}
+        Static friction: ``"auto"`` fits both nested structures (static = kinetic, and the
+        static band ``fs_mean + fs_delta·sgn(F)`` >= kinetic in each direction, 2.155a) and
+        keeps the one of lower BIC; ``"kinetic"`` only the first (warns when runs end at
+        rest outside the kinetic band); ``"band"`` only the second.
+    noise_model : bool
+        Fit an AR(p) model to the residuals (Burg, order by BIC, runs as segments) and refit
+        on prewhitened residuals when it is coloured; False: white-noise error bars.
 
     Returns
     -------
     Estimate
         Method ``"pho-output-error"``: ``J``, ``c_mean``, ``c_delta``, ``K``, ``fk_mean``,
-        ``fk_delta``, ``delay`` (given ones ``fixed``), ``covariance`` of the estimated
-        ones; ``data_used`` holds per run ``P``, ``D``, ``x0``, ``run_samples`` and,
-        concatenated over the runs, the fitted ``fit_x`` and the ``residual`` [rad or m];
-        diagnostics ``n_samples``, ``noise_std``, ``quantum``, ``bootstrap``, ``nfev``.
+        ``fk_delta``, ``delay`` (given ones ``fixed``) and, when the band is chosen,
+        ``fs_mean``, ``fs_delta`` [N·m or N] (standard error nan where the runs only bracket
+        the band); ``covariance`` of the estimated ones; ``data_used`` holds per run ``P``,
+        ``D``, ``x0``, ``run_samples`` and, concatenated over the runs, the fitted ``fit_x``
+        and the ``residual`` [rad or m]; diagnostics ``n_samples``, ``noise_std``,
+        ``quantum``, ``bootstrap``, ``nfev``, ``structure``, ``static_band`` (values,
+        edges, brackets, ``measured``; None for static = kinetic), ``at_bound`` (active
+        constraints), ``noise_model`` (:meth:`NoiseModel.to_dict`) and ``adequacy``
+        (:meth:`Adequacy.to_dict`: whiteness, structures compared and why, covariance kind).
 
     Raises
     ------
@@ -327,8 +360,8 @@ def estimate_pho_output_error(
         If the peak analysis cannot give start values, or the campaign does not determine
         the unknowns (singular Jacobian).
     ParameterError
-        For a missing gain, ``bootstrap < 25``, a bad ``delay``, ``K_known`` or
-        ``quantisation``.
+        For a missing gain, ``bootstrap < 25``, a bad ``delay``, ``K_known``,
+        ``quantisation``, ``static`` or ``noise_model``.
     RecordError
         For a record not sampled uniformly from its release.
     """
@@ -463,8 +496,8 @@ def estimate_pho_output_error(
             params[name] = Parameter(float(theta[i]), float(se[cov_free.index(i)]), unit[name])
         else:
             params[name] = Parameter(float(theta[i]), math.nan, unit[name], fixed=True)
-    band = _band_report(theta, chosen, cov, cov_free, bracketed, unit)
-    if band is not None:
+    band = _band_report(theta, chosen, cov, cov_free, bracketed, unit, fits)
+    if band is not None and band["chosen"]:
         params["fs_mean"] = Parameter(band["fs_mean"], band["fs_mean_se"], unit["fs_mean"])
         params["fs_delta"] = Parameter(band["fs_delta"], band["fs_delta_se"], unit["fs_delta"])
     release_se = np.full(len(problem.runs), np.nan)
@@ -472,6 +505,8 @@ def estimate_pho_output_error(
         if i >= core.N_PHYS:
             release_se[i - core.N_PHYS] = se[j]
     warnings = _warnings(theta, fit_free, lower, comparison, chosen, fits, iterations, static)
+    if static == "kinetic":
+        warnings += _stuck_outside(problem, theta, quantum)
     warnings += notes
     phys = [i for i in cov_free if i < core.N_PHYS]
     names = [FIELDS[i] if i < 7 else ("e_plus", "e_minus")[i - 7] for i in phys]
@@ -508,7 +543,7 @@ def estimate_pho_output_error(
             "condition": cond,
             "nfev": problem.nfev,
             "structure": chosen["structure"].name,
-            "static_band": band,
+            "static_band": band,  # None only with static="kinetic"
             "at_bound": core.at_bounds(theta, fit_free, lower),
             "noise_model": noise.to_dict(),
             "adequacy": adequacy.to_dict(),
