@@ -60,14 +60,20 @@ def _plant(name, negative_d=False):
              "fk_delta": 0.1 * b.fk_mean, "delay": params.feedback.delay}
     # (P, D, x0): net damping c + D - P·delay of the extra pairs is negative; x0 below the
     # amplitude where Coulomb and negative viscous damping balance, 4 fk/(π |c_net| ω)
+    # --negative-d: the pairs of `pho run`'s default grid that come to rest (so that the
+    # static band decides where), plus the negative-damping pairs
     if name == "testbed":
         grid, quantum = [(2.0, 0.03, 1.0), (5.0, 0.06, 1.0), (8.0, 0.09, 1.0)], 2 * math.pi / 8000
+        cli = [(2.0, 0.03, 1.0), (2.0, 0.04, 1.0), (2.0, 0.05, 1.0), (3.0, 0.04, 1.0),
+               (3.0, 0.05, 1.0)]
         extra = [(2.0, 0.015, 0.8), (1.0, -0.005, 0.78)]
     else:
         grid, quantum = [(200.0, 3.0, 0.3), (300.0, 4.5, 0.3), (400.0, 6.0, 0.3)], 1e-5
+        cli = [(120.0, 1.35, 0.6), (120.0, 1.8, 0.6), (180.0, 1.8, 0.6), (180.0, 2.25, 0.6),
+               (240.0, 2.25, 0.6)]
         extra = [(300.0, 2.0, 0.3), (100.0, -0.5, 0.3)]
     if negative_d:
-        grid = grid[:1] + extra
+        grid = cli + extra
     return truth, grid, quantum
 
 
