@@ -122,7 +122,8 @@ def _accepted(truth, est):
 
 
 def run(name, repeats, bootstrap, known_delay, refit, duration, fs, every, static=None,
-        negative_d=False, noise="encoder", phi=0.8, noise_std=1.0, no_bootstrap=False):
+        negative_d=False, noise="encoder", phi=0.8, noise_std=1.0, no_bootstrap=False,
+        fit_static="auto", noise_model=True):
     truth, grid, quantum = _plant(name, negative_d)
     exact = _exact_campaign(truth, grid, duration, fs, static)
     delay = truth["delay"] if known_delay else None
@@ -155,7 +156,7 @@ def run(name, repeats, bootstrap, known_delay, refit, duration, fs, every, stati
                         recs, delay=delay, K_known=0.0, start=pk, bootstrap=bootstrap,
                         refit=refit, rng=seed,
                         quantisation="auto" if noise == "encoder" and not no_bootstrap
-                        else None)
+                        else None, static=fit_static, noise_model=noise_model)
                 except DriveIdError:
                     failures["oe"] += 1
                 times["oe"] += time.process_time() - t0  # includes its peak start
@@ -175,7 +176,9 @@ def run(name, repeats, bootstrap, known_delay, refit, duration, fs, every, stati
             kind = (f"encoder quantum {quantum:.4g}" if noise == "encoder" else
                     f"{noise} noise sd {noise_std:g} quanta" + (f", phi {phi:g}"
                                                                  if noise == "ar1" else ""))
-            print(f"\n{name}: {len(exact)} runs of {duration:g} s at {fs:g} Hz, {kind}, grid "
+            print(f"\n{name} (fit: static {fit_static}"
+                  f"{', white noise' if not noise_model else ''}): {len(exact)} runs of "
+                  f"{duration:g} s at {fs:g} Hz, {kind}, grid "
                   f"(P, D, x0) {grid}; static/kinetic "
                   f"{'1 (equal)' if static is None else f'{static:g}'}; {done} of {repeats} "
                   f"realisations, bootstrap {bootstrap}{' (refit)' if refit else ''}, "
@@ -223,6 +226,9 @@ def main(argv=None):
     ap.add_argument("--every", type=int, default=25, help="print a summary every N repeats")
     ap.add_argument("--no-bootstrap", action="store_true",
                     help="encoder records fitted with the noise model, not the bootstrap")
+    ap.add_argument("--fit-static", choices=["auto", "kinetic", "band"], default="auto",
+                    help="the fit's static structure (kinetic: the fit before issue 24)")
+    ap.add_argument("--white-noise", action="store_true", help="fit without the noise model")
     ap.add_argument("--static", default="", help="static/kinetic ratios, e.g. 1.1,1.3")
     ap.add_argument("--negative-d", action="store_true",
                     help="grid with negative net damping pairs (Fig. 5.3), one with D < 0")
@@ -238,7 +244,8 @@ def main(argv=None):
             run(name.strip(), repeats, args.bootstrap, args.known_delay, args.refit,
                 args.duration, args.fs, args.every, static=ratio, negative_d=args.negative_d,
                 noise=args.noise, phi=args.phi, noise_std=args.noise_std,
-                no_bootstrap=args.no_bootstrap)
+                no_bootstrap=args.no_bootstrap, fit_static=args.fit_static,
+                noise_model=not args.white_noise)
             sys.stdout.flush()
 
 
