@@ -69,9 +69,11 @@ def _plant(name, negative_d=False):
         extra = [(2.0, 0.015, 0.8), (1.0, -0.005, 0.78)]
     else:
         grid, quantum = [(200.0, 3.0, 0.3), (300.0, 4.5, 0.3), (400.0, 6.0, 0.3)], 1e-5
-        cli = [(120.0, 1.35, 0.6), (120.0, 1.8, 0.6), (180.0, 1.8, 0.6), (180.0, 2.25, 0.6),
-               (240.0, 2.25, 0.6)]
-        extra = [(300.0, 2.0, 0.3), (100.0, -0.5, 0.3)]
+        # the releases vary: on this plant a run seldom stops with a force above kinetic
+        # (at 1.3 x kinetic, 3 of these 14 runs do; with x0 = 0.6 everywhere, none)
+        cli = [(120.0, 1.35, 0.6), (120.0, 1.8, 0.6), (180.0, 1.8, 0.4), (180.0, 2.25, 0.5),
+               (240.0, 2.25, 0.3)]
+        extra = [(300.0, 2.0, 0.3), (100.0, -0.5, 0.4)]
     if negative_d:
         grid = cli + extra
     return truth, grid, quantum

@@ -257,8 +257,10 @@ def scan_band(problem, theta, s2, quantum):
     Returns ``(theta, brackets)``: ``theta`` with ``e_plus, e_minus`` at the middle of the
     range whose residual sum of squares is within ``3.84 s²`` of the scan's least (the edge
     is bracketed, not measured, where a run ends stuck inside the band: the model does not
-    change across that range), or at its low end when the largest excess tried still fits;
-    ``brackets`` the ``(lo, hi)`` of each excess [N·m or N] (``hi`` = inf when open).
+    change across that range), or 10 % of fk above its low end when the largest excess
+    tried still fits;
+    ``brackets`` the ``(lo, hi)`` of each excess [N·m or N] (``hi`` = inf when open), and
+    the least residual sum of squares of the last edge's scan.
     """
     fkm = max(float(theta[4]), 1e-12)
     forces = problem.end_forces(theta, quantum)
@@ -267,7 +269,9 @@ def scan_band(problem, theta, s2, quantum):
     need_plus = max([0.0] + [F - plus_edge for F in forces])
     need_minus = max([0.0] + [minus_edge - F for F in forces])
     theta = theta.copy()
-    theta[7], theta[8] = need_plus, need_minus
+    # while one edge is scanned the other sits 10 % of fk inside what the rest positions
+    # demand, not on the boundary where a run flips between stopping and reversing
+    theta[7], theta[8] = need_plus + 0.1 * fkm, need_minus + 0.1 * fkm
     brackets = []
     for i, need in ((7, need_plus), (8, need_minus)):
         # relative grid: the rest positions say at least `need`; 45 % of fk above the
@@ -292,10 +296,11 @@ def scan_band(problem, theta, s2, quantum):
             hi_i += 1
         lo, hi = float(grid[lo_i]), float(grid[hi_i])
         open_top = hi_i == grid.size - 1
-        # an edge the runs bound from one side only is put at the least the data demand
-        theta[i] = lo if open_top else 0.5 * (lo + hi)
+        # an edge the runs bound from one side only is put 10 % of fk beyond the least the
+        # data demand (the least itself is where some run flips: a fragile start)
+        theta[i] = min(lo + 0.1 * fkm, hi) if open_top else 0.5 * (lo + hi)
         brackets.append((lo, math.inf if open_top else hi))
-    return theta, brackets
+    return theta, brackets, float(costs[best])
 
 
 def bootstrap_covariance(problem, theta, f, jac, free, s2, quantum, replicates, rng, refit,
