@@ -140,18 +140,21 @@ class Campaign:
                     jac[part, j] = np.nan
         return jac
 
-    def end_forces(self, theta: np.ndarray, quantum: float | None) -> np.ndarray:
+    def end_forces(self, theta: np.ndarray, quantum: float | None,
+                   noise_std: float = 0.0) -> np.ndarray:
         """Return the applied force ``-(P + K) x_end`` of each run that ends at rest [N·m or N].
 
         A run ends at rest when its last tenth (at least 20 samples) spans no more than ten
-        sample-to-sample noise deviations or 2.5 encoder steps; the delayed command then
+        sample-to-sample noise deviations, eight ``noise_std`` (coloured noise wanders
+        further than its differences say) or 2.5 encoder steps; the delayed command then
         reads ``x_end`` and the D term is 0.
         """
         out = []
         q = 0.0 if quantum is None else float(quantum)
         for r, y in zip(self.runs, self.y, strict=True):
             tail = y[-max(20, y.size // 10):]
-            tol = max(2.5 * q, 10.0 * float(np.std(np.diff(tail))) / math.sqrt(2.0))
+            tol = max(2.5 * q, 8.0 * noise_std,
+                      10.0 * float(np.std(np.diff(tail))) / math.sqrt(2.0))
             if np.ptp(tail) <= tol:
                 force = -(r["P"] + float(theta[3])) * float(np.mean(tail))
                 out.append(float(np.clip(force, -r["saturation"], r["saturation"])))
@@ -263,7 +266,7 @@ def scan_band(problem, theta, s2, quantum):
     the least residual sum of squares of the last edge's scan.
     """
     fkm = max(float(theta[4]), 1e-12)
-    forces = problem.end_forces(theta, quantum)
+    forces = problem.end_forces(theta, quantum, math.sqrt(max(s2, 0.0)))
     plus_edge = theta[5] + theta[4]
     minus_edge = theta[5] - theta[4]
     need_plus = max([0.0] + [F - plus_edge for F in forces])

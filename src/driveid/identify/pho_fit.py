@@ -275,9 +275,9 @@ def _adequacy_notes(comparison, chosen, fits, static, band):
     return notes
 
 
-def _stuck_outside(problem, theta, quantum):
+def _stuck_outside(problem, theta, quantum, noise_std):
     """Warn where runs end at rest with a holding force outside the fitted kinetic band."""
-    forces = problem.end_forces(theta, quantum)
+    forces = problem.end_forces(theta, quantum, noise_std)
     margin = 0.03 * float(theta[4])  # 3 % of fk: the rest position's own uncertainty
     plus, minus = theta[5] + theta[4], theta[5] - theta[4]
     outside = int(np.sum((forces > plus + margin) | (forces < minus - margin)))
@@ -548,7 +548,7 @@ def estimate_pho_output_error(
             release_se[i - core.N_PHYS] = se[j]
     warnings = _warnings(theta, fit_free, lower, comparison, chosen, fits, iterations, static)
     if static == "kinetic":
-        warnings += _stuck_outside(problem, theta, quantum)
+        warnings += _stuck_outside(problem, theta, quantum, math.sqrt(noise.variance))
     warnings += notes
     phys = [i for i in cov_free if i < core.N_PHYS]
     names = [FIELDS[i] if i < 7 else ("e_plus", "e_minus")[i - 7] for i in phys]
