@@ -79,12 +79,13 @@ def preset_campaign_defaults(name: str) -> dict:
             "x0": x0, "duration": 5.0}
 
 
-def _asymmetric(name: str, c_delta: float | None, fk_delta: float | None):
-    """Return the preset's drive with asymmetric friction on the body the feedback drives."""
+def _asymmetric(name: str, c_delta: float | None, fk_delta: float | None,
+                fs_mean: float | None = None):
+    """Return the preset's drive with asymmetric (and static) friction on the driven body."""
     import dataclasses
 
     params = preset(name)
-    if c_delta is None and fk_delta is None:
+    if c_delta is None and fk_delta is None and fs_mean is None:
         return params
     index = params.feedback.body if params.feedback is not None else 0
     changes = {k: v for k, v in (("c_delta", c_delta), ("fk_delta", fk_delta)) if v is not None}
@@ -100,6 +101,12 @@ def _asymmetric(name: str, c_delta: float | None, fk_delta: float | None):
     if fk_delta is not None and not body.fs_delta:
         # the presets set static = kinetic friction; keep it so in each direction
         changes["fs_delta"] = fk_delta
+    if fs_mean is not None:
+        if not (math.isfinite(fs_mean) and fs_mean >= body.fk_mean):
+            raise ParameterError(
+                f"--fs-mean must be >= the kinetic friction fk_mean = {body.fk_mean:g} of the "
+                f"{name} preset (static friction holds at least the kinetic); got {fs_mean:g}")
+        changes["fs_mean"] = fs_mean
     bodies[index] = dataclasses.replace(body, **changes)  # validated by BodyParams
     return dataclasses.replace(params, bodies=tuple(bodies))
 
@@ -158,10 +165,14 @@ def pho_group():
 @click.option("--fk-delta", type=float, default=None,
               help="Make the driven body's kinetic friction asymmetric: fk_delta (signed) "
                    "[N·m or N]; |fk_delta| <= fk_mean.")
+@click.option("--fs-mean", type=float, default=None,
+              help="Static friction of the driven body [N·m or N], >= its kinetic fk_mean "
+                   "(default: equal, as the presets); the static band is fs_mean around "
+                   "fk_delta (thesis 2.155a).")
 @clean_errors
 def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, duration, fs,
                     noise, counts_per_rev, counts_per_metre, seed, abort_limit, min_peaks, K,
-                    resume, max_runs, quiet, c_delta, fk_delta):
+                    resume, max_runs, quiet, c_delta, fk_delta, fs_mean):
     """Run a PHO campaign: every (P, D) of the grid from +x0 and -x0, written to --out."""
     defaults = preset_campaign_defaults(plant_name)
     if P_text is not None and P_range is not None:
@@ -177,7 +188,7 @@ def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, 
         P_values = defaults["P_values"]
     from driveid.experiment import SimulatedPlant, run_pho_campaign
 
-    plant = SimulatedPlant(_asymmetric(plant_name, c_delta, fk_delta), noise_std=noise,
+    plant = SimulatedPlant(_asymmetric(plant_name, c_delta, fk_delta, fs_mean), noise_std=noise,
                            counts_per_rev=counts_per_rev, counts_per_unit=counts_per_metre,
                            seed=seed, units=preset_units(plant_name), name=plant_name)
     D_start = defaults["D_start"] if D_start is None else D_start
@@ -247,12 +258,21 @@ def _reread(records: list, record_opts: RecordOptions) -> list:
                    "and the campaign equations; auto: oe, but peaks with --uncompensated, "
                    f"a negative K, above {OE_MAX_SAMPLES:,} samples in all, or if the oe "
                    "fit fails.")
+@click.option("--static", "static", type=click.Choice(["auto", "kinetic", "band"]),
+              default="auto", show_default=True,
+              help="Static friction in the whole-record fit: auto fits static = kinetic and "
+                   "a static band above kinetic (thesis 2.155a) and keeps the one the "
+                   "information criterion prefers; kinetic or band imposes one.")
+@click.option("--white-noise", is_flag=True,
+              help="Whole-record fit without the AR noise model (white-noise error bars, "
+                   "still widened when the residuals are not white).")
 @bootstrap_options(50)
 @record_options
 @output_options
 @clean_errors
 def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_outside, method,
-                        quantisation, bootstrap, seed, record_opts, output_opts):
+                        static, white_noise, quantisation, bootstrap, seed, record_opts,
+                        output_opts):
     """Identify J, C, K and asymmetric friction from a campaign folder or manifest PATH.
 
     The record options apply to every run file (e.g. --t-start 0.2 drops a start transient,
@@ -299,7 +319,8 @@ def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_out
                 est = estimate_pho_output_error(
                     records, delay=delay, K_known=K_known, units=manifest.units,
                     quantisation=q, bootstrap=bootstrap, rng=seed, start=peaks,
-                    progress=lambda done, total: bar.update(1))
+                    progress=lambda done, total: bar.update(1), static=static,
+                    noise_model=not white_noise)
         except (IdentificationError, RecordError) as exc:
             if method == "oe":
                 raise
@@ -309,6 +330,14 @@ def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_out
     how = ("uncompensated (delay 0)" if uncompensated else
            "delay estimated" if delay is None else f"delay {delay:g} s")
     label = "whole-record fit" if est.method == "pho-output-error" else "peak analysis"
+    if est.method == "pho-output-error":
+        d = est.diagnostics
+        band = d.get("static_band")
+        label += (f"; structure '{d['structure']}'"
+                  + (" (band bracketed by the rest positions, no standard error)"
+                     if band and band["chosen"] and not band["measured"] else "")
+                  + f"; noise {d['noise_model']['kind']}; error bars: "
+                  + d["adequacy"]["covariance"])
 
     def figure():
         return plot_of(est, records)

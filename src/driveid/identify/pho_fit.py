@@ -19,7 +19,7 @@ Each run is de Marchi (1998) Eq. (2.180) with the asymmetric friction of (2.155)
 
 released at ``t = 0`` from rest at ``x0`` (held there before, so the delayed command reads
 ``x0`` for ``t < Δ``) and sticking whenever the body stops with the applied force inside
-the static band (static = kinetic friction, as in the presets). It is integrated by the
+the static band ``fs_mean + fs_delta·sgn(F)`` (2.137, 2.155a). It is integrated by the
 event-located drive simulator (:func:`driveid.sim.drive.simulate_drive`, one body, the same
 RK4 step for every evaluation of a fit so that the model is a smooth function of the
 parameters between stick events). The unknowns are shared by all runs: ``J``, ``c_mean``,
@@ -53,11 +53,40 @@ asymmetric campaigns each of the test bed (8000 counts/rev) and the pendulum car
 delay estimated, the 95 % intervals covered the truth in 92-96.5 % for every field, with
 bias < 0.1 se and scatter/se 0.97-1.03; the peak analysis's covered 27.5-100 %.
 
+Static friction, noise model and adequacy (issue 24)
+----------------------------------------------------
+Two nested structures are fitted: static = kinetic, and the static band free with
+``fs_delta ± fs_mean`` enclosing the kinetic band in each direction (two excesses >= 0,
+thesis 2.137: static >= kinetic). A run that ends at rest outside the kinetic band says the
+band is wider; where the runs stop for good inside it they only *bracket* its edges (the
+model does not change across the bracket, it has no gradient there), so the band's start
+is a profile scan edge by edge, its reported value the middle of the bracket (or 10 % of
+fk_mean beyond the least the rest positions demand when it is open), without a standard
+error; a band that
+moves the response (a brief stick before breakaway) is estimated with the rest. The
+structures are compared by BIC on residuals prewhitened with one AR noise model
+(:func:`~driveid.identify._adequacy.compare_structures`); the choice and why go in
+``diagnostics["adequacy"]``.
+
+The noise model is an AR(p) fit (Burg, order by BIC, the runs as segments) to the residuals
+of the chosen structure; when it is coloured the fit is repeated on prewhitened residuals
+and Jacobian (prediction error) and the covariance is ``σ_w²(J_wᵀJ_w)⁻¹``; white noise is
+order 0 and changes nothing. Encoder records keep the bootstrap (their residuals are
+rounding, which no AR model describes: prewhitened error bars were 4-5x too narrow on
+quantised pendulum-cart campaigns), with the noise beyond the rounding drawn from the AR
+model. When the prewhitened residuals fail the Ljung–Box test and are not the encoder's
+rounding, each standard error is widened to the Newey–West sandwich's where that is larger,
+and a warning says so.
+
+Bounds: ``J > 0``, ``c_mean ± c_delta >= 0``, ``fk_mean ± fk_delta >= 0``, ``K >= 0``,
+static >= kinetic, by projection of every step; the active ones are listed in
+``diagnostics["at_bound"]`` and warned about.
+
 Limits
 ------
 One rigid body: a drive with backlash or compliance between the motor and the load (the
 ``testbed`` preset) has no single J; fit its motor alone or use the peaks. Static friction
-is taken equal to kinetic.
+is constant (no rising static friction with dwell time, thesis §2.1.1.2).
 Relative to the thesis: the thesis identifies from peaks (§2.2.7); the whole-record fit is
 our extension, with the thesis's model unchanged.
 
@@ -75,209 +104,229 @@ from typing import Any
 
 import numpy as np
 
-from driveid.errors import DriveIdError, IdentificationError, ParameterError, RecordError
+from driveid.errors import IdentificationError, ParameterError
+from driveid.identify import _pho_fit_core as core
+from driveid.identify._adequacy import Adequacy, Structure, compare_structures, ljung_box
+from driveid.identify._noise import NoiseModel, fit_noise_model, hac_covariance
 from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
-from driveid.identify.output_error import detect_quantum, replicate_covariance
-from driveid.identify.pho import _gains, estimate_pho_records
+from driveid.identify.output_error import detect_quantum
+from driveid.identify.pho import estimate_pho_records
 from driveid.io.record import Record
 
-__all__ = ["FIELDS", "estimate_pho_output_error"]
+__all__ = ["FIELDS", "STRUCTURES", "estimate_pho_output_error"]
 
-#: Parameters of the fit, in the order of the internal vector.
-FIELDS = ("J", "c_mean", "c_delta", "K", "fk_mean", "fk_delta", "delay")
-#: Relative forward-difference step of the Jacobian (model smooth to ~1e-13 between events).
-_FD_STEP = 1e-6
-#: Most Levenberg–Marquardt iterations of a fit.
-_MAX_ITER = 40
-
-
-class _Campaign:
-    """The runs of a campaign and the simulated closed loop for a parameter vector."""
-
-    def __init__(self, records: Sequence[Record], fit_release: bool | None):
-        self.runs = []
-        self.fitted_release = []
-        for k, rec in enumerate(records):
-            P, D = _gains(rec, k)
-            t = np.asarray(rec.t, float)
-            dt = float(np.median(np.diff(t)))
-            index = np.round(t / dt).astype(int)
-            if np.any(np.abs(t - index * dt) > 1e-6 * dt) or index[0] < 0:
-                raise RecordError(
-                    f"record {k} is not uniformly sampled from the release at t = 0; the PHO "
-                    "whole-record fit simulates on the sample grid - resample the record or "
-                    "use --method peaks")
-            x0 = rec.meta.get("x0")
-            if x0 is None:
-                if index[0] != 0:
-                    raise RecordError(
-                        f"record {k} has no meta['x0'] and does not start at the release "
-                        "(t = 0); give the run's release position x0 (manifest entry)")
-                x0 = float(rec.x[0])
-            if fit_release or (fit_release is None and rec.meta.get("x0") is None):
-                self.fitted_release.append(k)
-            sat = rec.meta.get("saturation")
-            self.runs.append({"P": P, "D": D, "x0": float(x0), "dt": dt, "index": index,
-                              "saturation": math.inf if sat is None else float(sat)})
-        self.y = [np.asarray(r.x, float) for r in records]
-        self.target = np.concatenate(self.y)
-        self.edges = np.cumsum([0] + [v.size for v in self.y])
-        self.n = self.target.size
-        self.max_step = None
-        self.nfev = 0
-
-    def set_step(self, theta: np.ndarray) -> None:
-        """Fix the RK4 step for the whole fit (the simulator's default at ``theta``)."""
-        J, c, cd, K = theta[:4]
-        rate = max(math.sqrt((K + abs(r["P"])) / J) for r in self.runs)
-        rate = max(rate, max((abs(c) + abs(cd) + abs(r["D"])) / J for r in self.runs))
-        self.max_step = min(0.2 / rate, min(r["dt"] for r in self.runs))
-        if theta[6] > 0:
-            self.max_step = min(self.max_step, float(theta[6]))
-
-    def run(self, theta: np.ndarray, k: int) -> np.ndarray:
-        """Return the simulated position of run ``k`` at its samples [rad or m]."""
-        from driveid.sim.drive import BodyParams, DriveParams, PDFeedback, simulate_drive
-
-        J, c, cd, K, fkm, fkd, delay = (float(v) for v in theta[:7])
-        r = self.runs[k]
-        x0 = float(theta[7 + k])
-        body = BodyParams(J=J, K=K, c_mean=c, c_delta=cd, fk_mean=fkm, fk_delta=fkd)
-        fb = PDFeedback(P=r["P"], D=r["D"], delay=delay, saturation=r["saturation"])
-        n_out = int(r["index"][-1])
-        res = simulate_drive(DriveParams(bodies=(body,), feedback=fb), duration=n_out * r["dt"],
-                             fs=1.0 / r["dt"], x0=[x0], max_step=self.max_step)
-        x = np.asarray(res.x[0], float)
-        if x.size <= n_out:
-            raise IdentificationError("simulated run shorter than its record")
-        return x[r["index"]]
-
-    def model(self, theta: np.ndarray) -> np.ndarray:
-        """All runs' simulated positions, concatenated [rad or m]; nan if not simulable."""
-        self.nfev += 1
-        try:
-            return np.concatenate([self.run(theta, k) for k in range(len(self.runs))])
-        except DriveIdError:
-            return np.full(self.n, np.nan)
-
-    def jacobian(self, theta, free, f0, scale):
-        """Forward-difference Jacobian (n, len(free)) of the model at ``theta``.
-
-        A release ``theta[7 + k]`` moves run ``k`` only, so only that run is simulated.
-        """
-        jac = np.zeros((self.n, len(free)))
-        for j, i in enumerate(free):
-            h = _FD_STEP * max(abs(theta[i]), scale[i])
-            up = theta.copy()
-            up[i] += h
-            if i < 7:
-                jac[:, j] = (self.model(up) - f0) / h
-            else:
-                part = slice(self.edges[i - 7], self.edges[i - 6])
-                try:
-                    jac[part, j] = (self.run(up, i - 7) - f0[part]) / h
-                except DriveIdError:
-                    jac[part, j] = np.nan
-        return jac
-
-
-def _fit(problem, theta0, free, lower, upper, scale, target=None):
-    """Levenberg–Marquardt over the ``free`` entries of ``theta``.
-
-    Returns ``(theta, f, jac, rss, iterations)``; stops when an iteration lowers χ² by less
-    than 1e-4 (in units of the current s²) or the step is below 1e-9 of the scale.
-    """
-    y = problem.target if target is None else target
-    theta = theta0.copy()
-    f = problem.model(theta)
-    if not np.all(np.isfinite(f)):
-        raise IdentificationError(
-            "the start values cannot be simulated; the peak analysis gave an unphysical "
-            "start (check the gains and the units of the records)")
-    r = y - f
-    rss = float(r @ r)
-    dof = max(problem.n - len(free), 1)
-    jac = problem.jacobian(theta, free, f, scale)
-    lam = 1e-3
-    it = 0
-    while it < _MAX_ITER:
-        it += 1
-        A = jac.T @ jac
-        g = jac.T @ r
-        d = np.diag(A).copy()
-        d[d <= 0] = 1.0
-        accepted = False
-        for _ in range(12):
-            try:
-                step = np.linalg.solve(A + lam * np.diag(d), g)
-            except np.linalg.LinAlgError:
-                lam *= 10.0
-                continue
-            trial = theta.copy()
-            trial[free] = np.clip(theta[free] + step, lower[free], upper[free])
-            f_t = problem.model(trial)
-            r_t = y - f_t
-            rss_t = float(r_t @ r_t) if np.all(np.isfinite(f_t)) else math.inf
-            if rss_t <= rss:
-                accepted = True
-                break
-            lam *= 4.0
-        if not accepted:
-            break
-        gain = (rss - rss_t) / max(rss / dof, 1e-300)
-        small = np.all(np.abs(trial[free] - theta[free]) <= 1e-9 * scale[free])
-        theta, f, r, rss = trial, f_t, r_t, rss_t
-        lam = max(lam / 3.0, 1e-9)
-        if gain < 1e-4 or small:
-            break
-        jac = problem.jacobian(theta, free, f, scale)
-    jac = problem.jacobian(theta, free, f, scale)
-    return theta, f, jac, rss, it
-
-
-def _bootstrap(problem, theta, f, jac, free, s2, quantum, replicates, rng, refit, lower,
-               upper, scale, progress):
-    """Covariance of the estimates from the fitted response re-quantised on random grids."""
-    gen = np.random.default_rng(rng)
-    extra = math.sqrt(max(s2 - quantum**2 / 12.0, 0.0))
-    bounds = np.cumsum([0] + [v.size for v in problem.y])
-    solve = np.linalg.pinv(jac)
-    out = []
-    for b in range(replicates):
-        y_b = np.empty_like(f)
-        for k in range(len(problem.y)):  # each run its own grid phase
-            part = f[bounds[k]:bounds[k + 1]]
-            if extra > 0:
-                part = part + gen.normal(0.0, extra, part.size)
-            phase = gen.uniform(0.0, quantum)
-            y_b[bounds[k]:bounds[k + 1]] = quantum * np.round((part - phase) / quantum) + phase
-        if refit:
-            try:
-                est = _fit(problem, theta, free, lower, upper, scale, target=y_b)[0][free]
-            except IdentificationError:
-                est = None
-        else:
-            est = theta[free] + solve @ (y_b - f)
-        if est is not None and np.all(np.isfinite(est)):
-            out.append(est)
-        if progress is not None:
-            progress(b + 1, replicates)
-    if len(out) < max(10, replicates // 2):
-        raise IdentificationError(
-            f"only {len(out)} of {replicates} bootstrap refits converged; the error bars of "
-            "this quantised campaign cannot be trusted (record more cycles or a finer encoder)")
-    return replicate_covariance(out)
+FIELDS = core.FIELDS
+#: Nested friction structures, simplest first (names as in ``diagnostics["adequacy"]``).
+STRUCTURES = ("static = kinetic", "static band free")
+#: Rounding explains the residuals of an encoder record up to this multiple of ``q/√12``.
+_ROUNDING_RMS = 1.5
+#: Residual rms above this multiple of the noise at rest is called a misfit [-].
+_MISFIT = 3.0
 
 
 def _units(units: str) -> dict[str, str]:
     if units == "m":
         return {"J": "kg", "c_mean": "N·s/m", "c_delta": "N·s/m", "K": "N/m", "fk_mean": "N",
-                "fk_delta": "N", "delay": "s"}
+                "fk_delta": "N", "delay": "s", "fs_mean": "N", "fs_delta": "N"}
     if units == "rad":
         return {"J": "kg·m²", "c_mean": "N·m·s/rad", "c_delta": "N·m·s/rad", "K": "N·m/rad",
-                "fk_mean": "N·m", "fk_delta": "N·m", "delay": "s"}
+                "fk_mean": "N·m", "fk_delta": "N·m", "delay": "s", "fs_mean": "N·m",
+                "fs_delta": "N·m"}
     raise ParameterError(f"units must be 'rad' (rotational) or 'm' (linear); got {units!r}")
+
+
+def _quantum(records, quantisation):
+    if quantisation == "auto":
+        found = [detect_quantum(np.asarray(r.x, float)) for r in records]
+        return min(found) if all(q is not None for q in found) else None
+    if quantisation is None:
+        return None
+    if isinstance(quantisation, (int, float)) and quantisation > 0:
+        return float(quantisation)
+    raise ParameterError(
+        f"quantisation must be 'auto', None or the encoder step > 0 [rad or m]; got "
+        f"{quantisation!r}")
+
+
+def _scales(problem, theta0):
+    """Step and stopping scales, and the box bounds (J > 0, K >= 0, fk_mean >= 0, e >= 0)."""
+    # an asymmetry, K or a band excess may be 0, so borrow its partner's scale
+    gains = np.array([r["P"] for r in problem.runs])
+    scale = np.abs(theta0).copy()
+    scale[2] = max(scale[2], 0.1 * scale[1], 1e-12)
+    scale[3] = max(scale[3], 0.1 * float(np.median(np.abs(gains))))
+    scale[5] = max(scale[5], 0.1 * scale[4], 1e-12)
+    scale[6] = max(scale[6], 1e-3)
+    scale[7] = scale[8] = max(0.1 * scale[4], 1e-12)
+    scale[core.N_PHYS:] = max(float(np.max(np.abs(theta0[core.N_PHYS:]))), 1e-12)
+    scale = np.maximum(scale, 1e-12)
+    lower = np.concatenate([[1e-9 * scale[0], -np.inf, -np.inf, 0.0, 0.0, -np.inf, 0.0,
+                             0.0, 0.0], np.full(len(problem.runs), -np.inf)])
+    return scale, lower, np.full(lower.size, np.inf)
+
+
+def _structure_fit(problem, theta0, free, lower, upper, scale):
+    """Fit one structure by unweighted least squares; its noise model and BIC entry."""
+    theta, f, jac, cost, iterations = core.fit(problem, theta0, free, lower, upper, scale)
+    residual = problem.target - f
+    noise = fit_noise_model(residual, segments=problem.segments, n_params=len(free))
+    whitened = noise.whiten(residual, problem.segments)
+    band = core.BAND[0] in free
+    name = STRUCTURES[1] if band else STRUCTURES[0]
+    structure = Structure(
+        name=name, n_params=len(free) + noise.order,
+        innovation_variance=float(whitened @ whitened) / max(whitened.size, 1), n=whitened.size,
+        effect="static friction above kinetic (thesis 2.137, 2.155a)" if band else "",
+        command="driveid pho analyse --static band" if band else "")
+    return {"theta": theta, "f": f, "jac": jac, "cost": cost, "iterations": iterations,
+            "free": list(free), "noise": noise, "structure": structure,
+            "s2": float(residual @ residual) / max(problem.n - len(free), 1)}
+
+
+def _common_noise(problem, fits):
+    """Give every structure the richest one's noise model: BIC then compares like with like.
+
+    Each structure keeps its own noise model for its own fit; for the comparison the
+    innovations of all are taken through the same AR filter (nested models, one noise model).
+    """
+    noise = fits[-1]["noise"]
+    for item in fits:
+        whitened = noise.whiten(problem.target - item["f"], problem.segments)
+        old = item["structure"]
+        item["structure"] = Structure(
+            name=old.name, n_params=len(item["free"]) + noise.order,
+            innovation_variance=float(whitened @ whitened) / max(whitened.size, 1),
+            n=whitened.size, effect=old.effect, command=old.command)
+
+
+def _identified(jac, j, scale, free):
+    """Return True unless column ``j`` is negligible next to the physical ones."""
+    norms = np.linalg.norm(jac, axis=0) * scale
+    phys = [m for m, i in enumerate(free) if i < 7]
+    return bool(norms[j] > 1e-6 * float(np.max(norms[phys])))
+
+
+def _whitened_segments(segments, order):
+    return [max(s - order, 0) for s in segments if s > order]
+
+
+def _public_covariance(names, cov):
+    """Covariance in the public parameters: e_plus, e_minus become fs_mean, fs_delta."""
+    if "e_plus" not in names or "e_minus" not in names:
+        keep = [m for m, n in enumerate(names) if n not in ("e_plus", "e_minus")]
+        return [names[m] for m in keep], cov[np.ix_(keep, keep)]
+    idx = {n: m for m, n in enumerate(names)}
+    T = np.eye(len(names))
+    cols = [idx["fk_mean"], idx["fk_delta"], idx["e_plus"], idx["e_minus"]]
+    T[idx["e_plus"], :] = 0.0
+    T[idx["e_minus"], :] = 0.0
+    T[np.ix_([idx["e_plus"], idx["e_minus"]], cols)] = core.band_jacobian()
+    out = [n if n not in ("e_plus", "e_minus") else {"e_plus": "fs_mean",
+                                                      "e_minus": "fs_delta"}[n] for n in names]
+    return out, T @ cov @ T.T
+
+
+def _band_report(theta, chosen, cov, cov_free, bracketed, unit, fits):
+    """Return the static band fitted (``chosen`` False where static = kinetic was kept)."""
+    if core.BAND[0] not in chosen["free"]:
+        if len(fits) < 2:
+            return None
+        # the band structure was fitted but not kept: report what it found, unchosen
+        rich = fits[1]
+        out = _band_report(rich["theta"], rich, cov, cov_free, list(core.BAND), unit, fits)
+        out["chosen"] = False
+        return out
+    fs_mean, fs_delta = core.band_from_excess(theta)
+    fk_plus, fk_minus = theta[5] + theta[4], theta[5] - theta[4]
+    out = {"fs_mean": fs_mean, "fs_delta": fs_delta, "fs_mean_se": math.nan,
+           "fs_delta_se": math.nan, "unit": unit["fs_mean"],
+           "edge_plus": fs_delta + fs_mean, "edge_minus": fs_delta - fs_mean,
+           "excess_plus": float(theta[7]), "excess_minus": float(theta[8]),
+           "ratio_mean": fs_mean / theta[4] if theta[4] > 0 else math.nan,
+           "measured": not bracketed, "chosen": True}
+    if not bracketed:
+        rows = [cov_free.index(i) for i in (4, 5, 7, 8)]
+        G = core.band_jacobian()
+        c = G @ cov[np.ix_(rows, rows)] @ G.T
+        out["fs_mean_se"], out["fs_delta_se"] = (float(math.sqrt(max(v, 0.0)))
+                                                 for v in np.diag(c))
+    brackets = chosen.get("brackets", [(math.nan, math.nan)] * 2)
+    out["bracket_plus"] = [_finite(fk_plus + brackets[0][0]), _finite(fk_plus + brackets[0][1])]
+    out["bracket_minus"] = [_finite(fk_minus - brackets[1][1]),
+                            _finite(fk_minus - brackets[1][0])]
+    return {k: float(v) if isinstance(v, (float, np.floating)) else v for k, v in out.items()}
+
+
+def _finite(v):
+    """Return ``v`` as a float, None for an open (infinite) end."""
+    return float(v) if math.isfinite(v) else None
+
+
+def _adequacy_notes(comparison, chosen, fits, static, band):
+    notes = [comparison["reason"]] if static == "auto" else [
+        f"'{chosen['structure'].name}' imposed (static={static!r})"]
+    if band is not None and band["chosen"] and not band["measured"]:
+        notes.append(
+            "the runs end stuck inside the static band without breaking away again, so they "
+            "bracket its edges rather than measure them: upper edge fs_delta + fs_mean in "
+            f"{_interval(band['bracket_plus'])}, lower edge fs_delta - fs_mean in "
+            f"{_interval(band['bracket_minus'])} {band['unit']}; the middle (or, for an "
+            "edge bounded on one side only, 10 % of fk_mean beyond the least the rest "
+            "positions demand) is reported, without a standard error")
+    return notes
+
+
+def _misfit_ratio(problem, f, quantum):
+    """Residual rms over the noise seen in the tails of runs at rest (nan if none rests)."""
+    q = 0.0 if quantum is None else quantum / math.sqrt(12.0)
+    tails, residual = [], problem.target - f
+    for y in problem.y:
+        tail = y[-max(20, y.size // 10):]
+        moving = np.ptp(tail) > max(2.5 * (quantum or 0.0),
+                                    10.0 * float(np.std(np.diff(tail))) / math.sqrt(2.0))
+        if not moving:
+            tails.append(tail - np.mean(tail))
+    if not tails:
+        return math.nan
+    rest = max(float(np.std(np.concatenate(tails))), q)
+    if rest == 0.0:
+        return math.nan
+    return math.sqrt(float(residual @ residual) / residual.size) / rest
+
+
+def _stuck_outside(problem, theta, quantum, noise_std):
+    """Warn where runs end at rest with a holding force outside the fitted kinetic band."""
+    forces = problem.end_forces(theta, quantum, noise_std)
+    margin = 0.03 * float(theta[4])  # 3 % of fk: the rest position's own uncertainty
+    plus, minus = theta[5] + theta[4], theta[5] - theta[4]
+    outside = int(np.sum((forces > plus + margin) | (forces < minus - margin)))
+    if not outside:
+        return []
+    worst = float(np.max(np.abs(forces - theta[5])) / max(theta[4], 1e-300))
+    return [f"{outside} run(s) end at rest where the loop pushes with up to {worst:.3g} times "
+            "the kinetic friction: static friction is above kinetic, which this fit assumes "
+            "equal (static='kinetic'); pass --static auto to fit the static band"]
+
+
+def _interval(pair):
+    lo = "-inf" if pair[0] is None else f"{pair[0]:.4g}"
+    hi = "inf" if pair[1] is None else f"{pair[1]:.4g}"
+    return f"[{lo}, {hi}]"
+
+
+def _warnings(theta, free, lower, comparison, chosen, fits, iterations, static):
+    out = [f"estimate at a bound: {name} (the fit wants it beyond the physical range; a "
+           "one-sided interval applies, the standard errors of the others hold with it "
+           "fixed there)" for name in core.at_bounds(theta, free, lower)]
+    if iterations >= core.MAX_ITER:
+        out.append(f"the fit stopped after {core.MAX_ITER} iterations without converging; "
+                   "check the start values (the peak analysis)")
+    if static == "auto" and comparison["needed"] and chosen is fits[0]:
+        out.append("the likelihood ratio asks for a static band above the kinetic friction but "
+                   "the information criterion keeps static = kinetic; pass --static band to "
+                   "fit it")
+    return out
 
 
 @plausibility_checked
@@ -294,6 +343,8 @@ def estimate_pho_output_error(
     start: Estimate | None = None,
     fit_release: bool | None = None,
     progress: Callable[[int, int], Any] | None = None,
+    static: str = "auto",
+    noise_model: bool = True,
 ) -> Estimate:
     """Fit the delayed-PD closed loop with asymmetric friction to every sample of a campaign.
 
@@ -329,15 +380,28 @@ def estimate_pho_output_error(
         fit). The loop that held the axis may leave it off the commanded ``x0``.
     progress : callable, optional
         Called as ``progress(done, total)`` after each bootstrap replicate.
+    static : {"auto", "kinetic", "band"}
+        Static friction: ``"auto"`` fits both nested structures (static = kinetic, and the
+        static band ``fs_mean + fs_delta·sgn(F)`` >= kinetic in each direction, 2.155a) and
+        keeps the one of lower BIC; ``"kinetic"`` only the first (warns when runs end at
+        rest outside the kinetic band); ``"band"`` only the second.
+    noise_model : bool
+        Fit an AR(p) model to the residuals (Burg, order by BIC, runs as segments) and refit
+        on prewhitened residuals when it is coloured; False: white-noise error bars.
 
     Returns
     -------
     Estimate
         Method ``"pho-output-error"``: ``J``, ``c_mean``, ``c_delta``, ``K``, ``fk_mean``,
-        ``fk_delta``, ``delay`` (given ones ``fixed``), ``covariance`` of the estimated
-        ones; ``data_used`` holds per run ``P``, ``D``, ``x0``, ``run_samples`` and,
-        concatenated over the runs, the fitted ``fit_x`` and the ``residual`` [rad or m];
-        diagnostics ``n_samples``, ``noise_std``, ``quantum``, ``bootstrap``, ``nfev``.
+        ``fk_delta``, ``delay`` (given ones ``fixed``) and, when the band is chosen,
+        ``fs_mean``, ``fs_delta`` [N·m or N] (standard error nan where the runs only bracket
+        the band); ``covariance`` of the estimated ones; ``data_used`` holds per run ``P``,
+        ``D``, ``x0``, ``run_samples`` and, concatenated over the runs, the fitted ``fit_x``
+        and the ``residual`` [rad or m]; diagnostics ``n_samples``, ``noise_std``,
+        ``quantum``, ``bootstrap``, ``nfev``, ``structure``, ``static_band`` (values,
+        edges, brackets, ``measured``; None for static = kinetic), ``at_bound`` (active
+        constraints), ``noise_model`` (:meth:`NoiseModel.to_dict`) and ``adequacy``
+        (:meth:`Adequacy.to_dict`: whiteness, structures compared and why, covariance kind).
 
     Raises
     ------
@@ -345,8 +409,8 @@ def estimate_pho_output_error(
         If the peak analysis cannot give start values, or the campaign does not determine
         the unknowns (singular Jacobian).
     ParameterError
-        For a missing gain, ``bootstrap < 25``, a bad ``delay``, ``K_known`` or
-        ``quantisation``.
+        For a missing gain, ``bootstrap < 25``, a bad ``delay``, ``K_known``,
+        ``quantisation``, ``static`` or ``noise_model``.
     RecordError
         For a record not sampled uniformly from its release.
     """
@@ -365,24 +429,20 @@ def estimate_pho_output_error(
         raise ParameterError(
             f"K_known must be >= 0 [N·m/rad or N/m] (the simulated loop has no negative "
             f"spring) or None; got {K_known!r}")
+    if static not in ("auto", "kinetic", "band"):
+        raise ParameterError(
+            f"static must be 'auto' (choose by the information criterion), 'kinetic' (static "
+            f"= kinetic friction) or 'band' (static band fitted); got {static!r}")
+    if not isinstance(noise_model, bool):
+        raise ParameterError(f"noise_model must be True or False; got {noise_model!r}")
     if units is None:
         units = records[0].units.get("x", "rad")
     unit = _units(units)
-    if quantisation == "auto":
-        found = [detect_quantum(np.asarray(r.x, float)) for r in records]
-        quantum = min(found) if all(q is not None for q in found) else None
-    elif quantisation is None:
-        quantum = None
-    elif isinstance(quantisation, (int, float)) and quantisation > 0:
-        quantum = float(quantisation)
-    else:
-        raise ParameterError(
-            f"quantisation must be 'auto', None or the encoder step > 0 [rad or m]; got "
-            f"{quantisation!r}")
-    problem = _Campaign(records, fit_release)
+    quantum = _quantum(records, quantisation)
+    problem = core.Campaign(records, fit_release)
     if start is None:
         start = estimate_pho_records(records, delay=delay, K_known=K_known, units=units)
-    theta0 = np.array([start.value(n) if n in start else 0.0 for n in FIELDS]
+    theta0 = np.array([start.value(n) if n in start else 0.0 for n in FIELDS] + [0.0, 0.0]
                       + [r["x0"] for r in problem.runs], float)
     if delay is not None:
         theta0[6] = delay
@@ -390,70 +450,160 @@ def estimate_pho_output_error(
         theta0[3] = K_known
     free = [i for i, n in enumerate(FIELDS)
             if not ((n == "K" and K_known is not None) or (n == "delay" and delay is not None))]
-    n_phys = len(free)
-    free += [7 + k for k in problem.fitted_release]
-    # scales for steps and stopping: an asymmetry or K may be 0, so borrow its partner's
-    gains = np.array([r["P"] for r in problem.runs])
-    scale = np.abs(theta0).copy()
-    scale[2] = max(scale[2], 0.1 * scale[1], 1e-12)
-    scale[3] = max(scale[3], 0.1 * float(np.median(np.abs(gains))))
-    scale[5] = max(scale[5], 0.1 * scale[4], 1e-12)
-    scale[6] = max(scale[6], 1e-3)
-    scale[7:] = max(float(np.max(np.abs(theta0[7:]))), 1e-12)
-    scale = np.maximum(scale, 1e-12)
-    lower = np.concatenate([[1e-9 * scale[0], -np.inf, -np.inf, 0.0, 0.0, -np.inf, 0.0],
-                            np.full(len(problem.runs), -np.inf)])
-    upper = np.full(lower.size, np.inf)
-    theta0 = np.clip(theta0, lower, upper)
+    releases = [core.N_PHYS + k for k in problem.fitted_release]
+    scale, lower, upper = _scales(problem, theta0)
+    theta0 = core.project(theta0, lower, upper)
     problem.set_step(theta0)
-    theta, f, jac, rss, iterations = _fit(problem, theta0, free, lower, upper, scale)
-    dof = problem.n - len(free)
+    base = _structure_fit(problem, theta0, free + releases, lower, upper, scale)
+    fits = [base]
+    if static != "kinetic":
+        rich_free = free + list(core.BAND) + releases
+        band_start, brackets, _ = core.scan_band(problem, base["theta"], base["s2"], quantum)
+        rich = _structure_fit(problem, band_start, rich_free, lower, upper, scale)
+        rich["brackets"] = brackets
+        # a second start: the scan at the peak analysis's values (the kinetic fit's are
+        # biased by the missing band and may hold the band fit in their basin: c_delta
+        # +80 % on one AR(1)-noise test-bed campaign of 20)
+        other, other_brackets, _ = core.scan_band(problem, theta0, base["s2"], quantum)
+        second = _structure_fit(problem, other, rich_free, lower, upper, scale)
+        if second["cost"] < rich["cost"]:
+            second["brackets"] = other_brackets
+            second["iterations"] += rich["iterations"]
+            rich = second
+        # the first scan saw the kinetic fit's parameters, biased by the missing band: scan
+        # again at the band fit's and refit while that lowers the cost (alternation)
+        for _ in range(3):
+            again, brackets, cost = core.scan_band(problem, rich["theta"], rich["s2"], quantum)
+            rich["brackets"] = brackets
+            if not cost < rich["cost"] - 3.84 * rich["s2"]:
+                break
+            better = _structure_fit(problem, again, rich_free, lower, upper, scale)
+            if not better["cost"] < rich["cost"]:
+                break
+            better["brackets"] = brackets
+            better["iterations"] += rich["iterations"]
+            rich = better
+        fits.append(rich)
+    _common_noise(problem, fits)
+    comparison = compare_structures([f["structure"] for f in fits])
+    if static == "band":
+        chosen = fits[1]
+    else:
+        chosen = fits[STRUCTURES.index(comparison["chosen"])]
+    theta, f, jac, cost = chosen["theta"], chosen["f"], chosen["jac"], chosen["cost"]
+    fit_free = list(chosen["free"])
+    noise = chosen["noise"]
+    iterations = chosen["iterations"]
+    # prediction error: refit on prewhitened residuals (encoder records keep the unweighted
+    # fit; their bootstrap carries the rounding and the coloured noise beyond it)
+    if noise_model and quantum is None and not noise.is_white:
+        for _ in range(2):
+            theta, f, jac, cost, it = core.fit(problem, theta, fit_free, lower, upper, scale,
+                                               noise=noise)
+            iterations += it
+            refitted = fit_noise_model(problem.target - f, segments=problem.segments,
+                                       n_params=len(fit_free))
+            if refitted.order == noise.order and np.allclose(refitted.ar, noise.ar, atol=0.02):
+                noise = refitted
+                break
+            noise = refitted
+    if not noise_model:
+        noise = NoiseModel((), noise.variance, noise.variance, noise.n, (), "white")
+    # a static band that the runs only bracket (they end stuck inside it) has no gradient:
+    # it is reported as the bracket and left out of the covariance
+    bracketed = [i for i in core.BAND if i in fit_free
+                 and not _identified(jac, fit_free.index(i), scale[fit_free], fit_free)]
+    cov_free = [i for i in fit_free if i not in bracketed]
+    jac_c = jac[:, [fit_free.index(i) for i in cov_free]]
+    whitened_jac = noise.whiten(jac_c, problem.segments)
+    whitened_res = noise.whiten(problem.target - f, problem.segments)
+    dof = whitened_res.size - len(cov_free) - noise.order
     if dof <= 0:
-        raise IdentificationError(f"{problem.n} samples cannot determine {len(free)} unknowns")
-    s2 = rss / dof
-    if not (np.all(np.isfinite(jac)) and np.all(np.isfinite(theta))):
+        raise IdentificationError(f"{problem.n} samples cannot determine {len(cov_free)} unknowns")
+    s2w = float(whitened_res @ whitened_res) / dof
+    if not (np.all(np.isfinite(jac_c)) and np.all(np.isfinite(theta))):
         raise IdentificationError(
             "the fitted closed loop cannot be simulated near its optimum (non-finite "
             "Jacobian); check the gains and units of the records, or use the peak analysis")
-    cond = float(np.linalg.cond(jac / scale[free]))
+    cond = float(np.linalg.cond(jac_c / scale[cov_free]))
     if not math.isfinite(cond) or cond > 1e12:
         raise IdentificationError(
             "the runs do not separate the unknowns (singular Jacobian); add runs with widely "
             f"different P, or give the delay or K; got condition number {cond:.3g}")
+    bread = np.linalg.inv(whitened_jac.T @ whitened_jac)
+    white_cov = s2w * bread
+    whiteness = ljung_box(whitened_res, fitted=noise.order)
+    rms = math.sqrt(float((problem.target - f) @ (problem.target - f)) / problem.n)
+    rounding = quantum is not None and rms <= _ROUNDING_RMS * quantum / math.sqrt(12.0)
+    explained = whiteness["white"] or rounding
+    notes = []
     if quantum is not None:
-        cov = _bootstrap(problem, theta, f, jac, free, s2, quantum, bootstrap, rng, refit,
-                         lower, upper, scale, progress)
+        s2 = float((problem.target - f) @ (problem.target - f)) / max(problem.n - len(cov_free), 1)
+        cov = core.bootstrap_covariance(problem, theta, f, jac_c, cov_free, s2, quantum,
+                                        bootstrap, rng, refit, lower, upper, scale, progress,
+                                        noise)
+        how = "bootstrap"
     else:
-        cov = s2 * np.linalg.inv(jac.T @ jac)
+        cov = white_cov
+        how = "prewhitened" if not noise.is_white else "white"
+    if not explained:
+        sandwich = hac_covariance(whitened_jac, whitened_res,
+                                  segments=_whitened_segments(problem.segments, noise.order),
+                                  bread=bread)
+        ratio = np.sqrt(np.clip(np.diag(sandwich), 0, None) / np.diag(white_cov))
+        widen = np.maximum(ratio, 1.0)
+        cov = cov * np.outer(widen, widen)
+        how = "sandwich"
+        notes.append(
+            f"the residuals stay non-white after the {noise.to_dict()['kind']} noise model "
+            f"(Ljung-Box p = {whiteness['p_value']:.2g}) and are not explained by the encoder "
+            f"rounding: error bars widened by the Newey-West sandwich (x{widen.max():.2g} at "
+            "most); an effect outside the model (backlash, compliance, friction varying with "
+            "position) may be present - compare `driveid validate`")
     se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    release_se = np.full(len(problem.runs), np.nan)
-    for j, i in enumerate(free[n_phys:], start=n_phys):
-        release_se[i - 7] = se[j]
     params = {}
     for i, name in enumerate(FIELDS):
-        if i in free:
-            params[name] = Parameter(float(theta[i]), float(se[free.index(i)]), unit[name])
+        if i in cov_free:
+            params[name] = Parameter(float(theta[i]), float(se[cov_free.index(i)]), unit[name])
         else:
             params[name] = Parameter(float(theta[i]), math.nan, unit[name], fixed=True)
-    warnings = [f"{FIELDS[i]} = {theta[i]:.4g} sits on its bound {lower[i]:g}: the fit wants "
-                "it lower than the simulator allows; its error bar is not reliable"
-                for i in free if theta[i] <= lower[i] and lower[i] > -np.inf]
-    if iterations >= _MAX_ITER:
-        warnings.append(f"the fit stopped after {_MAX_ITER} iterations without converging; "
-                        "check the start values (the peak analysis)")
+    band = _band_report(theta, chosen, cov, cov_free, bracketed, unit, fits)
+    if band is not None and band["chosen"]:
+        params["fs_mean"] = Parameter(band["fs_mean"], band["fs_mean_se"], unit["fs_mean"])
+        params["fs_delta"] = Parameter(band["fs_delta"], band["fs_delta_se"], unit["fs_delta"])
+    release_se = np.full(len(problem.runs), np.nan)
+    for j, i in enumerate(cov_free):
+        if i >= core.N_PHYS:
+            release_se[i - core.N_PHYS] = se[j]
+    warnings = _warnings(theta, fit_free, lower, comparison, chosen, fits, iterations, static)
+    if static == "kinetic":
+        warnings += _stuck_outside(problem, theta, quantum, math.sqrt(noise.variance))
+    misfit = _misfit_ratio(problem, f, quantum)
+    if misfit > _MISFIT:
+        warnings.append(
+            f"the residuals are {misfit:.3g} times the noise the runs show at rest: the model "
+            "misses the motion (a local optimum from a poor start, or an effect outside the "
+            "model); compare `--method peaks` and `driveid validate`, or give --delay")
+    warnings += notes
+    phys = [i for i in cov_free if i < core.N_PHYS]
+    names = [FIELDS[i] if i < 7 else ("e_plus", "e_minus")[i - 7] for i in phys]
+    cov_phys = cov[np.ix_([cov_free.index(i) for i in phys], [cov_free.index(i) for i in phys])]
+    cov_names, cov_matrix = _public_covariance(names, cov_phys)
+    adequacy = Adequacy(whiteness=whiteness, structures=comparison, covariance=how,
+                        notes=tuple(_adequacy_notes(comparison, chosen, fits, static, band)
+                                    + notes))
     residual = problem.target - f
     return Estimate(
         method="pho-output-error",
         params=params,
-        covariance={"names": [FIELDS[i] for i in free[:n_phys]],
-                    "matrix": cov[:n_phys, :n_phys]},
+        covariance={"names": cov_names, "matrix": cov_matrix},
         warnings=tuple(warnings),
         data_used={
             "P": np.array([r["P"] for r in problem.runs]),
             "D": np.array([r["D"] for r in problem.runs]),
-            "x0": theta[7:].copy(),
+            "x0": theta[core.N_PHYS:].copy(),
             "x0_se": release_se,
-            "run_samples": np.array([v.size for v in problem.y]),
+            "run_samples": np.array(problem.segments),
             "fit_x": f,
             "residual": residual,
         },
@@ -461,13 +611,19 @@ def estimate_pho_output_error(
             "n_samples": problem.n,
             "n_runs": len(problem.runs),
             "n_records": len(records),
-            "residual_rms": math.sqrt(float(residual @ residual) / problem.n),
-            "noise_std": math.sqrt(s2),
+            "residual_rms": rms,
+            "noise_std": math.sqrt(max(noise.variance, 0.0)),
             "quantum": quantum,
             "bootstrap": bootstrap if quantum is not None else 0,
             "refit": bool(refit),
             "iterations": iterations,
             "condition": cond,
             "nfev": problem.nfev,
+            "misfit_ratio": misfit,
+            "structure": chosen["structure"].name,
+            "static_band": band,  # None only with static="kinetic"
+            "at_bound": core.at_bounds(theta, fit_free, lower),
+            "noise_model": noise.to_dict(),
+            "adequacy": adequacy.to_dict(),
         },
     )
