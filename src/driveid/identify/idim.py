@@ -25,7 +25,9 @@ import numpy as np
 from scipy import signal as sps
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify._adequacy import Adequacy, input_cross_correlation, ljung_box
 from driveid.identify._expressions import evaluate_expression, parse_expression
+from driveid.identify._noise import NoiseModel, fit_noise_model, hac_covariance
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.signal.differentiate import differentiate
@@ -174,6 +176,10 @@ def idim_regressor(
             "(CLI: --force NAME); got a record with columns "
             f"{list(record.columns)}"
         )
+    # the Butterworth filter, the differences and the decimation assume one sampling interval;
+    # an uneven clock (a robot log with 1-13 ms steps) is put on the median grid first, warned
+    record = record.resampled_uniform(
+        purpose="IDIM's zero-phase filter, differentiation and decimation")
     fs = record.fs
     if not cutoff_hz < fs / 2:
         raise ParameterError(
@@ -243,7 +249,9 @@ def _as_records(records: Record | Sequence[Record]) -> list[Record]:
     if not recs or not all(isinstance(r, Record) for r in recs):
         raise ParameterError("records must be a Record or a non-empty sequence of Records; "
                              f"got {type(records).__name__}")
-    return recs
+    # once here, so that the cut-off check's refits do not warn again
+    return [r.resampled_uniform(purpose="IDIM's zero-phase filter, differentiation and "
+                                "decimation") for r in recs]
 
 
 def _stack(recs: list[Record], loads: list[Any], settings: dict[str, Any]
@@ -265,6 +273,7 @@ def estimate_idim(
     weights: str | Sequence[float] | None = None,
     min_speed: float | None = None,
     sensitivity: bool = True,
+    noise: str = "ar",
 ) -> Estimate:
     """Estimate inertia, viscous and Coulomb friction (and offset) by IDIM-LS.
 
@@ -307,6 +316,12 @@ def estimate_idim(
     sensitivity : bool
         Also estimate at ``cutoff_hz/√2`` and ``cutoff_hz·√2`` (below 0.45 fs) and warn
         when the inertia moves by more than its standard error (and more than 1 %).
+    noise : {"ar", "white"}
+        ``"ar"`` (default): feasible generalised least squares with an AR(p) model of the
+        force residual (order by BIC, fitted per contiguous run), the regressors and force
+        prewhitened and the fit repeated; white residuals give exactly the ordinary
+        least-squares fit. ``"white"``: ordinary least squares with white-noise error bars
+        (the EMPS benchmark's published recipe).
 
     Returns
     -------
@@ -314,10 +329,15 @@ def estimate_idim(
         ``M`` [kg] (``J`` [kg·m²] when x is not in m), ``Fv`` [N·s/m], ``Fc`` [N],
         ``offset`` [N] (fixed when given) or the asymmetric set, and ``k[<expr>]``, each
         with the standard error ``sqrt(σ²·diag((WᵀΛW)⁻¹))``, ``σ² = eᵀΛe/(m − p)``.
-        ``covariance`` of the estimated parameters. Diagnostics: ``cond``,
+        ``covariance`` of the estimated parameters (from the prewhitened regressors; the
+        Newey–West sandwich when even the prewhitened residuals are not white).
+        Diagnostics: ``noise_model`` (order, AR coefficients, ``n_eff``), ``adequacy``
+        (Ljung–Box whiteness of the prewhitened residuals, their cross-correlation with the
+        prewhitened velocity, covariance kind, notes), ``stderr_white`` (the ordinary
+        least-squares standard errors, for comparison), ``cond``,
         ``relative_error_pct`` (``100·||e||/||y||``), ``error_norm``, ``error_std``,
-        ``n``, ``n_records``, ``residual_lag1`` (lag-1 autocorrelation of the residual:
-        the standard errors assume it is near 0), ``inertia_share_pct`` (the part of the
+        ``n``, ``n_records``, ``residual_lag1`` (lag-1 autocorrelation of the residual;
+        the noise model accounts for it), ``inertia_share_pct`` (the part of the
         force that ``M·a`` explains), ``cutoff_sensitivity`` (inertia at the three
         cut-offs), ``unphysical`` (names with a sign impossible for a passive drive) and
         the settings. ``data_used`` holds decimated ``t``, ``force``, ``predicted``,
@@ -335,6 +355,14 @@ def estimate_idim(
 
     Notes
     -----
+    Force residuals of real drives are coloured (unmodelled dynamics, the loop's own
+    noise, the decimation filter): ordinary least squares stays consistent but its
+    white-noise error bars are too small by up to ``sqrt(n/n_eff)``. With ``noise="ar"``
+    the residual ``e`` of each contiguous run of decimated rows is modelled as AR(p),
+    ``A(q) e = w``, and θ re-estimated from ``A(q) y = A(q) W θ + w`` (feasible GLS,
+    Ljung 1999 §7.2; two passes), with covariance ``σ_w² (W_wᵀ W_w)⁻¹`` of the
+    prewhitened ``W_w`` (:mod:`driveid.identify._noise`).
+
     Ordinary least squares is unbiased only if the force noise is uncorrelated with the
     regressors; in closed loop it is not, but the benchmark shows the bias is small when
     the filter cut-off is well above the loop bandwidth (Janot et al. 2019, §3.3). Noise
@@ -372,11 +400,13 @@ def estimate_idim(
     _check_motion(v_all, model, offset)
     w = _weights(weights, len(recs))
     support = _support(v_all, model, p)
-    theta, cov, e, W, y, keep = _solve(blocks, w, support)
+    if noise not in ("ar", "white"):
+        raise ParameterError(f"noise must be 'ar' or 'white'; got {noise!r}")
+    theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise)
     if weights == "auto":
         var = np.array([max(float(np.mean(e[i] ** 2)), 1e-300) for i in range(len(blocks))])
         w = 1.0 / var
-        theta, cov, e, W, y, keep = _solve(blocks, w, support)
+        theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise)
     first = recs[0]
     translational = first.units.get("x", "rad") == "m"
     force_unit = first.units.get("u", "N" if translational else "N·m")
@@ -423,11 +453,16 @@ def estimate_idim(
         "weights": [float(x) for x in w],
         "source": str(first.meta.get("source", "")),
         "force_unit": force_unit,
+        "noise": noise,
+        "noise_model": fit["noise_model"].to_dict(),
+        "adequacy": fit["adequacy"].to_dict(),
+        "stderr_white": {nm: float(s_) for nm, s_ in
+                         zip(est_names, np.sqrt(np.diag(fit["cov_white"])), strict=True)},
     }
-    warnings = _warnings(params, names, keep, diagnostics, model)
+    warnings = _warnings(params, names, keep, diagnostics, model) + fit["warnings"]
     if sensitivity:
         warnings += _cutoff_check(recs, loads, settings, w, params[inertia], inertia,
-                                  diagnostics)
+                                  diagnostics, noise)
     est = Estimate(
         method=f"idim-ls-{model}",
         params=params,
@@ -482,21 +517,126 @@ def _support(v: np.ndarray, model: str, p: int) -> np.ndarray:
     return support
 
 
-def _solve(blocks: list[Any], w: np.ndarray, support: np.ndarray) -> tuple[Any, ...]:
+def _solve(blocks: list[Any], w: np.ndarray, support: np.ndarray, *, noise: str = "white"
+           ) -> tuple[Any, ...]:
     W = np.vstack([b[0] for b in blocks])
     y = np.concatenate([b[1] for b in blocks])
     root = np.concatenate([np.full(b[1].size, math.sqrt(wi)) for b, wi in zip(blocks, w,
                                                                              strict=True)])
     # a column with no support (a direction never travelled) carries no information
     keep = support & (np.max(np.abs(W), axis=0) > 0)
-    theta_k, cov_k, _ = _ols(W[:, keep] * root[:, None], y * root)
+    Wk, yk = W[:, keep] * root[:, None], y * root
+    theta_k, cov_k, _ = _ols(Wk, yk)
+    cov_white = cov_k
+    runs = _runs(blocks)
+    fit: dict[str, Any] = {"cov_white": cov_white, "warnings": []}
+    if noise == "ar":
+        theta_k, cov_k, fit = _gls(Wk, yk, theta_k, cov_k, runs,
+                                   np.concatenate([b[3] for b in blocks]), fit)
+    else:
+        e_w = yk - Wk @ theta_k
+        fit["noise_model"] = NoiseModel((), *(2 * [float(e_w @ e_w) / e_w.size]), e_w.size,
+                                        (), "white")
+        fit["adequacy"] = Adequacy(whiteness=ljung_box(e_w), covariance="white",
+                                   notes=("white-noise error bars (noise='white')",))
     theta = np.zeros(W.shape[1])
     theta[keep] = theta_k
     cov = np.full((W.shape[1], W.shape[1]), math.nan)
     cov[np.ix_(keep, keep)] = cov_k
     e_all = y - W @ theta
     splits = np.cumsum([b[1].size for b in blocks])[:-1]
-    return theta, cov, np.split(e_all, splits), W, np.split(y, splits), keep
+    return theta, cov, np.split(e_all, splits), W, np.split(y, splits), keep, fit
+
+
+def _runs(blocks: list[Any]) -> list[int]:
+    """Lengths of the contiguous runs of rows (standstill gaps split a record) [-]."""
+    lengths: list[int] = []
+    for b in blocks:
+        t = np.asarray(b[2], float)
+        if t.size < 3:
+            lengths += [t.size] if t.size else []
+            continue
+        dt = np.diff(t)
+        cuts = np.flatnonzero(dt > 1.5 * float(np.median(dt))) + 1
+        lengths += np.diff(np.concatenate([[0], cuts, [t.size]])).astype(int).tolist()
+    return lengths
+
+
+#: Shortest run whose rows feed the AR fit [-]: shorter ones would cap its order at n/20.
+_MIN_RUN = 200
+
+
+def _noise_of(e: np.ndarray, runs: list[int], n_params: int) -> NoiseModel:
+    long_runs = [r >= _MIN_RUN for r in runs]
+    if any(long_runs) and not all(long_runs):
+        starts = np.concatenate([[0], np.cumsum(runs)[:-1]])
+        idx = np.concatenate([np.arange(s0, s0 + r) for s0, r, ok in
+                              zip(starts, runs, long_runs, strict=True) if ok])
+        return fit_noise_model(e[idx], segments=[r for r, ok in zip(runs, long_runs,
+                                                                     strict=True) if ok],
+                               n_params=n_params)
+    return fit_noise_model(e, segments=runs, n_params=n_params)
+
+
+def _gls(Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray, cov: np.ndarray, runs: list[int],
+         v: np.ndarray, fit: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
+    """Feasible GLS: AR(p) noise of the residual, prewhitened refit (two passes).
+
+    When even the prewhitened residuals are not white and the GLS and OLS estimates
+    disagree by more than two standard errors, the model is wrong in a way that weighting
+    cannot fix: the OLS estimate (the benchmark's) is kept with a Newey–West covariance.
+    """
+    p = Wk.shape[1]
+    theta_ols = theta
+    model = NoiseModel()
+    for _ in range(2):
+        model = _noise_of(yk - Wk @ theta, runs, p)
+        if model.is_white:
+            break
+        Ww, yw = model.whiten(Wk, runs), model.whiten(yk, runs)
+        if yw.size <= p:
+            model = NoiseModel((), model.variance, model.variance, model.n, (), "burg")
+            break
+        theta, cov, _ = _ols(Ww, yw)
+    Ww, yw = model.whiten(Wk, runs), model.whiten(yk, runs)
+    kept = [r - model.order for r in runs if r > model.order]
+    e_w = yw - Ww @ theta
+    # more lags than AR coefficients, or the χ² test has no degrees of freedom left
+    white = ljung_box(e_w, lags=max(20, model.order + 20), fitted=model.order)
+    cross = input_cross_correlation(e_w, model.whiten(v, runs))
+    notes = []
+    kind = "white" if model.is_white else "prewhitened"
+    if not model.is_white:
+        notes.append(
+            f"force residuals are coloured (AR({model.order}), {model.n_eff:.0f} effective of "
+            f"{model.n} samples): fitted by generalised least squares on prewhitened rows; "
+            "the standard errors account for the correlation")
+    if not white["white"]:
+        cov = hac_covariance(Ww, e_w, segments=kept)
+        kind = "sandwich"
+        se = np.sqrt(np.diag(cov))
+        moved = np.abs(theta - theta_ols) / np.where(se > 0, se, np.inf)
+        if float(np.max(moved)) > 2.0:
+            # weighting shifts a misspecified fit towards the frequencies it fits worst
+            theta = theta_ols
+            cov = hac_covariance(Wk, yk - Wk @ theta_ols, segments=runs)
+            kind = "sandwich (ordinary least squares)"
+        notes.append(
+            f"prewhitened residuals are still not white (Ljung-Box p = {white['p_value']:.2g})"
+            ": the model misses some dynamics (compliance, backlash, a load, friction that "
+            "is not Coulomb + viscous); standard errors widened by the Newey-West sandwich"
+            + (f"; generalised and ordinary least squares disagree by {np.max(moved):.1f} "
+               "standard errors, so the ordinary least-squares values are reported"
+               if theta is theta_ols else ""))
+        fit["warnings"].append(notes[-1])
+    if not cross["uncorrelated"]:
+        notes.append(
+            f"residuals correlate with the velocity (|rho| = {cross['max_abs']:.2f} at lag "
+            f"{cross['at_lag']} rows): velocity-dependent friction beyond Coulomb + viscous "
+            "(Stribeck: identify friction-map) or, at positive lags, the feedback loop")
+    fit["noise_model"] = model
+    fit["adequacy"] = Adequacy(whiteness=white, cross=cross, covariance=kind, notes=tuple(notes))
+    return theta, cov, fit
 
 
 def _lag1(residuals: list[np.ndarray]) -> float:
@@ -539,18 +679,12 @@ def _warnings(params: dict[str, Parameter], names: tuple[str, ...], keep: np.nda
     if any(r > 0.3 for r in rel_se):
         out.append("some relative standard errors exceed 30 %; excite the drive "
                    "over a wider range of velocity and acceleration")
-    if diag["residual_lag1"] > 0.5:
-        rho = diag["residual_lag1"]
-        out.append(
-            f"residuals are correlated (lag-1 autocorrelation {rho:.2f}), so the standard "
-            f"errors are too small by about a factor {math.sqrt((1 + rho) / (1 - rho)):.2g}"
-            "; the model misses some dynamics or the decimation is too small")
     return out
 
 
 def _cutoff_check(recs: list[Record], loads: list[Any], settings: dict[str, Any],
-                  w: np.ndarray, pj: Parameter, inertia: str, diag: dict[str, Any]
-                  ) -> list[str]:
+                  w: np.ndarray, pj: Parameter, inertia: str, diag: dict[str, Any],
+                  noise: str = "white") -> list[str]:
     fc = settings["cutoff_hz"]
     fs_min = min(r.fs for r in recs)
     values = {fc: pj.value}
@@ -560,7 +694,8 @@ def _cutoff_check(recs: list[Record], loads: list[Any], settings: dict[str, Any]
         try:
             blocks, _ = _stack(recs, loads, {**settings, "cutoff_hz": f})
             theta, *_ = _solve(blocks, w, _support(np.concatenate([b[3] for b in blocks]),
-                                                   settings["model"], blocks[0][0].shape[1]))
+                                                   settings["model"], blocks[0][0].shape[1]),
+                               noise=noise)
         except (IdentificationError, RecordError, ParameterError):
             continue
         values[f] = float(theta[0])
