@@ -17,7 +17,10 @@ hysteresis loop. Two shapes are analysed:
   the contact stiffness and the sliding levels.
 
 The applied force is taken as the friction/contact force: the test must be slow enough
-that inertia is negligible (check ``J·a`` against the force).
+that inertia is negligible (check ``J·a`` against the force). Both analyses use force
+against displacement in sample order, never the time step, so an uneven clock does not
+bias them; only the optional low-pass on the force resamples to the median interval (with
+a warning).
 """
 
 from __future__ import annotations
@@ -258,6 +261,9 @@ def estimate_backlash_loop(record: Record, *, threshold: float | None = None,
     (presliding friction or a preload read as a dead zone) is held at 0, reported in
     ``diagnostics["at_bound"]`` with its one-sided 95 % upper limit, and warned.
     """
+    if lowpass_hz is not None:
+        # the filter needs one interval; the loop itself uses the sample order only
+        record = record.resampled_uniform(purpose="the low-pass on the force (--lowpass-hz)")
     x, u = _check(record)
     if lowpass_hz is not None:
         u = zero_phase_lowpass(u, record.fs, lowpass_hz)
