@@ -69,6 +69,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
@@ -286,9 +287,28 @@ def _estimate(records, omega, P, D, delay, K_known, settle_tol, min_periods, met
             "n_frequencies": n_freq,
             "max_response_distortion": float(distortion.max()),
             "max_input_distortion": float(max(f.input_distortion for f in fits)),
+            "noise": [f.noise for f in fits],
+            "adequacy": _adequacy(fits, chi2, dof),
         },
         warnings=tuple(warnings),
     )
+
+
+def _adequacy(fits: list[Any], chi2: float, dof: int) -> dict[str, Any]:
+    """Per-run residual whiteness (after the AR noise model) and the across-run χ²."""
+    white = [bool(f.noise.get("whiteness", {}).get("white", True)) for f in fits]
+    notes = []
+    coloured = [i for i, f in enumerate(fits) if f.noise.get("x", {}).get("order", 0) > 0]
+    if coloured:
+        notes.append(f"runs {coloured} have coloured response noise: their phasor errors come "
+                     "from the AR noise model (the spectrum at the excitation frequency)")
+    if not all(white):
+        notes.append(f"runs {[i for i, ok in enumerate(white) if not ok]} leave residuals that "
+                     "are not white even after the noise model (an unsettled transient, a "
+                     "drifting offset or friction that is not viscous)")
+    ratio = chi2 / dof if dof > 0 else math.nan
+    return {"runs_white": white, "chi2_per_dof": ratio,
+            "adequate": bool(all(white) and not ratio > 100.0), "notes": notes}
 
 
 @plausibility_checked

@@ -23,11 +23,13 @@ from typing import Any
 
 import numpy as np
 from scipy import signal as sps
+from scipy.optimize import lsq_linear
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify._adequacy import Adequacy, input_cross_correlation, ljung_box
 from driveid.identify._expressions import evaluate_expression, parse_expression
 from driveid.identify._noise import NoiseModel, fit_noise_model, hac_covariance
+from driveid.identify._plausibility import held_at_zero
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.signal.differentiate import differentiate
@@ -339,7 +341,9 @@ def estimate_idim(
         ``n``, ``n_records``, ``residual_lag1`` (lag-1 autocorrelation of the residual;
         the noise model accounts for it), ``inertia_share_pct`` (the part of the
         force that ``M·a`` explains), ``cutoff_sensitivity`` (inertia at the three
-        cut-offs), ``unphysical`` (names with a sign impossible for a passive drive) and
+        cut-offs), ``unphysical`` (names with a sign impossible for a passive drive),
+        ``at_bound`` (M, Fv, Fc held at 0 by the bounded fit: the unconstrained value and
+        the one-sided 95 % upper limit) and
         the settings. ``data_used`` holds decimated ``t``, ``force``, ``predicted``,
         ``velocity`` and ``record_index``.
 
@@ -362,6 +366,11 @@ def estimate_idim(
     ``A(q) e = w``, and θ re-estimated from ``A(q) y = A(q) W θ + w`` (feasible GLS,
     Ljung 1999 §7.2; two passes), with covariance ``σ_w² (W_wᵀ W_w)⁻¹`` of the
     prewhitened ``W_w`` (:mod:`driveid.identify._noise`).
+
+    The fit is bounded by physics (M > 0, Fv >= 0, Fc >= 0 and their ``_plus``/``_minus``
+    forms): when the unconstrained estimate crosses a bound, bounded least squares
+    (:func:`scipy.optimize.lsq_linear`) on the same rows holds it at 0 and refits the
+    others; ``diagnostics["at_bound"]`` and a warning say so.
 
     Ordinary least squares is unbiased only if the force noise is uncorrelated with the
     regressors; in closed loop it is not, but the benchmark shows the bias is small when
@@ -402,11 +411,14 @@ def estimate_idim(
     support = _support(v_all, model, p)
     if noise not in ("ar", "white"):
         raise ParameterError(f"noise must be 'ar' or 'white'; got {noise!r}")
-    theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise)
+    positive = np.array([True] * (5 if model == "asymmetric" else 3) + [False] * (
+        p - (5 if model == "asymmetric" else 3)))
+    theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise, positive=positive)
     if weights == "auto":
         var = np.array([max(float(np.mean(e[i] ** 2)), 1e-300) for i in range(len(blocks))])
         w = 1.0 / var
-        theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise)
+        theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise,
+                                                positive=positive)
     first = recs[0]
     translational = first.units.get("x", "rad") == "m"
     force_unit = first.units.get("u", "N" if translational else "N·m")
@@ -459,7 +471,13 @@ def estimate_idim(
         "stderr_white": {nm: float(s_) for nm, s_ in
                          zip(est_names, np.sqrt(np.diag(fit["cov_white"])), strict=True)},
     }
+    held = _held(fit, theta, names, units, stderr)
     warnings = _warnings(params, names, keep, diagnostics, model) + fit["warnings"]
+    if held:
+        diagnostics["at_bound"] = {nm: entry for nm, (entry, _) in held.items()}
+        diagnostics["unphysical"] = sorted(set(diagnostics["unphysical"]) | set(held),
+                                           key=names.index)
+        warnings += [message for _, message in held.values()]
     if sensitivity:
         warnings += _cutoff_check(recs, loads, settings, w, params[inertia], inertia,
                                   diagnostics, noise)
@@ -517,8 +535,8 @@ def _support(v: np.ndarray, model: str, p: int) -> np.ndarray:
     return support
 
 
-def _solve(blocks: list[Any], w: np.ndarray, support: np.ndarray, *, noise: str = "white"
-           ) -> tuple[Any, ...]:
+def _solve(blocks: list[Any], w: np.ndarray, support: np.ndarray, *, noise: str = "white",
+           positive: np.ndarray | None = None) -> tuple[Any, ...]:
     W = np.vstack([b[0] for b in blocks])
     y = np.concatenate([b[1] for b in blocks])
     root = np.concatenate([np.full(b[1].size, math.sqrt(wi)) for b, wi in zip(blocks, w,
@@ -539,6 +557,18 @@ def _solve(blocks: list[Any], w: np.ndarray, support: np.ndarray, *, noise: str 
                                         (), "white")
         fit["adequacy"] = Adequacy(whiteness=ljung_box(e_w), covariance="white",
                                    notes=("white-noise error bars (noise='white')",))
+        fit["system"] = (Wk, yk)
+    if positive is not None:
+        pos = np.asarray(positive, bool)[keep]
+        if np.any(theta_k[pos] < 0):
+            # M > 0, Fv >= 0, Fc >= 0: the bounded least squares on the same (prewhitened)
+            # rows; the standard errors stay those of the unconstrained fit
+            A, b = fit["system"]
+            lower = np.where(pos, 0.0, -np.inf)
+            fit["unconstrained"] = dict(zip(np.flatnonzero(keep).tolist(),
+                                            theta_k.tolist(), strict=True))
+            res = lsq_linear(A, b, bounds=(lower, np.inf))
+            theta_k = np.where(res.active_mask < 0, 0.0, res.x)  # exactly at the bound
     theta = np.zeros(W.shape[1])
     theta[keep] = theta_k
     cov = np.full((W.shape[1], W.shape[1]), math.nan)
@@ -546,6 +576,20 @@ def _solve(blocks: list[Any], w: np.ndarray, support: np.ndarray, *, noise: str 
     e_all = y - W @ theta
     splits = np.cumsum([b[1].size for b in blocks])[:-1]
     return theta, cov, np.split(e_all, splits), W, np.split(y, splits), keep, fit
+
+
+def _held(fit: dict[str, Any], theta: np.ndarray, names: tuple[str, ...],
+          units: tuple[str, ...], stderr: np.ndarray) -> dict[str, tuple[dict, str]]:
+    """Parameters the bounded fit holds at 0, with their at-bound record and warning."""
+    out = {}
+    for j, value in (fit.get("unconstrained") or {}).items():
+        if value < 0 and theta[j] <= 0:
+            hint = ("a passive drive cannot have it; the model misses an effect of the data "
+                    "(backlash, compliance, stiction, a load or an offset), or the excitation "
+                    "is too weak; the other parameters were refitted with it at 0")
+            out[names[j]] = held_at_zero(names[j], float(value), float(stderr[j]), units[j],
+                                         hint)
+    return out
 
 
 def _runs(blocks: list[Any]) -> list[int]:
@@ -636,6 +680,7 @@ def _gls(Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray, cov: np.ndarray, run
             "(Stribeck: identify friction-map) or, at positive lags, the feedback loop")
     fit["noise_model"] = model
     fit["adequacy"] = Adequacy(whiteness=white, cross=cross, covariance=kind, notes=tuple(notes))
+    fit["system"] = (Wk, yk) if (model.is_white or theta is theta_ols) else (Ww, yw)
     return theta, cov, fit
 
 
