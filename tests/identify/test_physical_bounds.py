@@ -96,7 +96,7 @@ def test_walk_estimators_on_adversarial_records():
 def test_every_bounded_name_is_checked(value, stderr, warned):
     from driveid.identify.estimate import Estimate, Parameter
 
-    for name in GAP + DAMPING + SPRING:
+    for name in GAP + DAMPING + SPRING + ("zeta_2", "K_1"):  # numbered modes too
         est = check_plausibility(Estimate("demo", {name: Parameter(value, stderr, "u")}))
         assert bool(est.warnings) is warned, (name, est.warnings)
         assert (name in est.diagnostics.get("at_bound", {})) is warned

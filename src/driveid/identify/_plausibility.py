@@ -188,6 +188,10 @@ def held_at_zero(name: str, value: float, stderr: float, unit: str, cause: str
 
 
 def _bounded_hint(name: str) -> str | None:
+    # multi-mode estimators number their modes: zeta_1, K_2 … are judged like zeta, K
+    base, _, tail = name.rpartition("_")
+    if base and tail.isdigit():
+        name = base
     if name in _GAP:
         return GAP_HINT
     if name.startswith("Fv"):
