@@ -119,3 +119,30 @@ def test_strict_turns_a_held_gap_into_exit_2(tmp_path):
                comments="")
     res = CliRunner().invoke(loop_command, [str(path), "--kind", "backlash", "--strict"])
     assert res.exit_code == 2 and "gap held at its bound 0" in res.output
+
+
+def test_forced_fit_holds_a_negative_stiffness_at_zero():
+    from driveid.identify.forced import estimate_forced_response
+
+    # a free axis (K = 0) driven far above any resonance: the unconstrained K scatters
+    # about 0; with noise it comes out negative for some seed, and is then held and said
+    rng = np.random.default_rng(5)
+    J, c = 0.02, 0.05
+    held = 0
+    for _ in range(6):
+        runs = []
+        for w in (20.0, 30.0, 45.0):
+            t = np.arange(int(20 * 2 * np.pi / w * 500)) / 500.0
+            H = -J * w**2 + 1j * w * c
+            x = np.imag(np.exp(1j * w * t) / H) + 2e-4 * rng.standard_normal(t.size)
+            runs.append(Record(t=t, x=x, u=np.sin(w * t)))
+        est = estimate_forced_response(runs, settle_tol=0.05)
+        assert est.value("K") >= 0
+        entry = est.diagnostics.get("at_bound", {}).get("K")
+        if entry and entry["at_bound"]:  # (an ill-determined K > 0 is recorded, not held)
+            held += 1
+            assert est.value("K") == 0.0
+            assert any(w.startswith("K held at its bound 0") for w in est.warnings)
+        assert not _unwarned_negatives(est)
+    # K's sign is a coin toss on a free axis: in 6 tries it is held at least once
+    assert held >= 1
