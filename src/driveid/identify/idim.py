@@ -28,7 +28,7 @@ from scipy.optimize import lsq_linear
 from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify._adequacy import Adequacy, input_cross_correlation, ljung_box
 from driveid.identify._expressions import evaluate_expression, parse_expression
-from driveid.identify._noise import NoiseModel, fit_noise_model, hac_covariance
+from driveid.identify._noise import MAX_ORDER, NoiseModel, fit_noise_model, hac_covariance
 from driveid.identify._plausibility import held_at_zero
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
@@ -592,6 +592,31 @@ def _held(fit: dict[str, Any], theta: np.ndarray, names: tuple[str, ...],
     return out
 
 
+def _ar_ols_covariance(W: np.ndarray, model: NoiseModel, runs: list[int]) -> np.ndarray:
+    """Covariance ``(WᵀW)⁻¹ WᵀΣW (WᵀW)⁻¹`` of least squares under AR(p) noise.
+
+    ``Σ`` is the noise model's Toeplitz autocovariance within each run (none across runs),
+    applied by circulant embedding and FFT: ``O(n log n)`` per column.
+    """
+    bread = np.linalg.inv(W.T @ W)
+    b = np.concatenate([[1.0], -np.asarray(model.ar, float)])
+    meat = np.zeros((W.shape[1], W.shape[1]))
+    start = 0
+    for n in runs:
+        block = W[start:start + n]
+        start += n
+        if n == 0:
+            continue
+        size = 1 << int(math.ceil(math.log2(2 * n)))
+        gain = np.abs(np.fft.rfft(b, size)) ** 2
+        acov = np.fft.irfft(model.innovation_variance / gain, size)
+        c = np.concatenate([acov[:n], np.zeros(size - 2 * n + 1), acov[1:n][::-1]])
+        sw = np.fft.irfft(np.fft.rfft(c)[:, None] * np.fft.rfft(block, size, axis=0), size,
+                          axis=0)[:n]
+        meat += block.T @ sw
+    return bread @ meat @ bread
+
+
 def _runs(blocks: list[Any]) -> list[int]:
     """Lengths of the contiguous runs of rows (standstill gaps split a record) [-]."""
     lengths: list[int] = []
@@ -611,7 +636,12 @@ _MIN_RUN = 200
 
 
 def _noise_of(e: np.ndarray, runs: list[int], n_params: int) -> NoiseModel:
-    long_runs = [r >= _MIN_RUN for r in runs]
+    # the AR order is capped at (shortest run)/20: fit on the longest runs that still hold
+    # a third of the rows, so that band-limited noise can get the long filter it needs
+    total = sum(runs)
+    min_run = next((m for m in (20 * MAX_ORDER, 10 * MAX_ORDER, _MIN_RUN)
+                    if sum(r for r in runs if r >= m) >= total / 3), _MIN_RUN)
+    long_runs = [r >= min_run for r in runs]
     if any(long_runs) and not all(long_runs):
         starts = np.concatenate([[0], np.cumsum(runs)[:-1]])
         idx = np.concatenate([np.arange(s0, s0 + r) for s0, r, ok in
@@ -632,9 +662,9 @@ def _gls(Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray, cov: np.ndarray, run
     """
     p = Wk.shape[1]
     theta_ols = theta
-    model = NoiseModel()
-    for _ in range(2):
-        model = _noise_of(yk - Wk @ theta, runs, p)
+    model_ols = model = _noise_of(yk - Wk @ theta, runs, p)
+    for k in range(2):
+        model = model_ols if k == 0 else _noise_of(yk - Wk @ theta, runs, p)
         if model.is_white:
             break
         Ww, yw = model.whiten(Wk, runs), model.whiten(yk, runs)
@@ -655,6 +685,21 @@ def _gls(Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray, cov: np.ndarray, run
             f"force residuals are coloured (AR({model.order}), {model.n_eff:.0f} effective of "
             f"{model.n} samples): fitted by generalised least squares on prewhitened rows; "
             "the standard errors account for the correlation")
+    if not white["white"] and not model_ols.is_white:
+        e_ols = model_ols.whiten(yk - Wk @ theta_ols, runs)
+        white_ols = ljung_box(e_ols, lags=max(20, model_ols.order + 20),
+                              fitted=model_ols.order)
+        if white_ols["white"]:
+            # the noise model whitens the ordinary fit's residual, but prewhitening the
+            # regressors amplifies the Coulomb steps, where sgn(v) of the filtered velocity
+            # is a sample off: keep the ordinary fit, with its covariance under the AR model
+            theta, model, white, e_w = theta_ols, model_ols, white_ols, e_ols
+            cov = _ar_ols_covariance(Wk, model_ols, runs)
+            kind = "noise model (ordinary least squares)"
+            cross = input_cross_correlation(e_w, model.whiten(v, runs))
+            notes.append("generalised least squares leaves non-white residuals where the "
+                         "ordinary fit's are white under the noise model: the ordinary fit is "
+                         "reported, with its covariance under the AR noise model")
     if not white["white"]:
         cov = hac_covariance(Ww, e_w, segments=kept)
         kind = "sandwich"
