@@ -154,8 +154,8 @@ def test_band_limited_noise_keeps_the_ordinary_fit_with_ar_covariance():
 def test_ar_covariance_of_least_squares_equals_the_dense_toeplitz_product():
     from scipy.linalg import toeplitz
 
+    from driveid.identify._idim_noise import _ar_ols_covariance
     from driveid.identify._noise import NoiseModel
-    from driveid.identify.idim import _ar_ols_covariance
 
     rng = np.random.default_rng(7)
     W = rng.standard_normal((300, 3))
