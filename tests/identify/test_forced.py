@@ -149,9 +149,13 @@ def test_forced_pho_ignoring_the_delay_is_biased(pho_runs):
     assert est0.value("J") - JA == pytest.approx(predicted, rel=0.05)
     assert (est0.value("J") - JA) / JA < -0.04
     # Im z / ω ≈ D - PΔ: the damping appears negative (physically impossible), off by -PΔ
-    assert est0.value("c_mean") < 0
+    # bounded fit (issue 24): held at 0, the unconstrained value kept and warned
+    assert est0.value("c_mean") == 0.0
+    c_free = est0.diagnostics["at_bound"]["c_mean"]["value"]
+    assert c_free < 0
+    assert any(w.startswith("c_mean held at its bound 0") for w in est0.warnings)
     # same expansion; the ω²Δ² terms are below 5 % of PΔ
-    assert est0.value("c_mean") - CA == pytest.approx(-P * DELAY, rel=0.05)
+    assert c_free - CA == pytest.approx(-P * DELAY, rel=0.05)
 
 
 def test_coulomb_friction_bias_follows_describing_function(coulomb_runs):
@@ -259,7 +263,10 @@ def test_forced_pho_estimates_the_delay(pho_runs_varied_gain):
         # the joint standard error covers the error (measured |z| < 1)
         assert abs(est.value("delay") - DELAY) < 5 * est.stderr("delay")
         assert est.stderr("delay") > 0
-        assert not est.warnings  # chi2/dof is large, but the misfit is ~1e-5 of |H|
+        # chi2/dof is large, but the misfit is ~1e-5 of |H|; the free axis's K = 0 comes out
+        # a hair off 0, which is said (issue 24: a stiffness that is negative or within two
+        # standard errors of 0 is never printed unwarned)
+        assert all(w.startswith("K = ") for w in est.warnings), est.warnings
 
 
 

@@ -86,6 +86,10 @@ def _with_legacy(func: Any) -> Any:
               help="Drop rows slower than this [m/s or rad/s] (standstill rows always are).")
 @click.option("--no-sensitivity", is_flag=True,
               help="Skip the estimates at the two neighbouring cut-offs.")
+@click.option("--noise", type=click.Choice(["ar", "white"]), default="ar", show_default=True,
+              help="Force-noise model: 'ar' fits AR(p) residuals and refits by generalised "
+                   "least squares (honest error bars on coloured noise); 'white' is ordinary "
+                   "least squares with white-noise error bars (the EMPS recipe).")
 @click.option("--simulate", is_flag=True,
               help="Also simulate the closed loop (EMPS .mat files: reads qg, kp, kv, gtau "
                    "and pulses_N) and report position and force errors.")
@@ -94,7 +98,7 @@ def _with_legacy(func: Any) -> Any:
 @output_options
 @clean_errors
 def idim_command(files, validate_file, model, cutoff_hz, decimate, offset, load_column,
-                 load_expr, regressors, weights, min_speed, no_sensitivity, simulate,
+                 load_expr, regressors, weights, min_speed, no_sensitivity, noise, simulate,
                  force_column, force_scale, units, record_opts, output_opts):
     """Identify inertia, Coulomb and viscous friction by inverse-model least squares.
 
@@ -126,7 +130,7 @@ def idim_command(files, validate_file, model, cutoff_hz, decimate, offset, load_
         w = "auto" if weights.strip() == "auto" else _numbers(weights, "--weights")
     est = estimate_idim(records, model=model, cutoff_hz=cutoff_hz, decimate=decimate,
                         offset=offset, load=load, regressors=regressors, weights=w,
-                        min_speed=min_speed, sensitivity=not no_sensitivity)
+                        min_speed=min_speed, sensitivity=not no_sensitivity, noise=noise)
     extra: dict[str, Any] = {}
     val = None
     if validate_file is not None:

@@ -14,6 +14,12 @@ physical and name the likely cause and what to try:
 - a standard error larger than the value of a quantity that must be positive: too little
   excitation or too few data for that parameter.
 
+- a backlash gap, a damping (viscous coefficient, damping ratio, decay rate) or a stiffness
+  that is negative at all, or ill-determined (standard error at least half its value): a
+  warning naming the likely cause, and ``diagnostics["at_bound"]`` recording the bound
+  (0), the unconstrained value and standard error and the one-sided 95 % upper limit
+  ``max(value + 1.645 s.e., 0)`` (the interval the data allow under the physical bound).
+
 Signed asymmetries (``c_delta``, ``fk_delta``, ``offset`` ...) may legitimately be zero
 within their error and are not checked for it. Given values (``Parameter.fixed``) are
 never checked.
@@ -21,6 +27,7 @@ never checked.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable
@@ -28,7 +35,8 @@ from typing import Any
 
 from driveid.identify.estimate import Estimate
 
-__all__ = ["check_plausibility", "plausibility_checked", "check_refit_stability"]
+__all__ = ["check_plausibility", "plausibility_checked", "check_refit_stability",
+           "held_at_zero", "GAP_HINT"]
 
 _INERTIA = ("J", "M", "M_plus", "M_minus")
 _STIFFNESS = ("K",)
@@ -38,6 +46,35 @@ _FRICTION = ("c_mean", "fk_mean", "fs_mean", "Fv", "Fc", "Fv_plus", "Fv_minus", 
 _POSITIVE = (*_INERTIA, *_FRICTION, "omega0", "omega_d", "zeta", "zeta_plus", "zeta_minus",
              "sigma")
 _SIGNIFICANT = 2.0
+#: Bounded at 0 by physics, never negative without a warning (issue 24).
+_GAP = ("gap", "gap_plus", "gap_minus", "gap_total", "b")
+_DAMPING = ("c_mean", "c_plus", "c_minus", "c", "Fv", "Fv_plus", "Fv_minus", "zeta",
+            "zeta_plus", "zeta_minus", "zeta_mean", "sigma")
+_SPRING = ("K", "K0", "K_eff", "ks", "K_plus", "K_minus", "sigma0", "K_contact")
+#: One-sided 95 % normal quantile [-].
+_ONE_SIDED_95 = 1.645
+#: Standard error at or above this fraction of |value|: ill-determined [-] (issue 24).
+_ILL = 0.5
+
+GAP_HINT = (
+    "a gap cannot be negative; likely presliding friction or a preloaded (zero-backlash) "
+    "transmission read as a dead zone, contact lines fitted where the driven side already "
+    "slides, positions read before they settled, or a stiffness that is not linear at small "
+    "loads; try slower full cycles, larger loads on both sides, or identify loop --kind "
+    "presliding")
+_DAMPING_HINT = (
+    "damping cannot be negative in a passive drive; likely Coulomb friction read as viscous "
+    "(a straight-line decay envelope: identify envelope tells them apart), quadratic (air) "
+    "damping, drift or an offset in the record, a loop delay feeding energy in (PHO), or too "
+    "short a record; try a window without drift (--t-start/--t-end), a friction model with "
+    "Coulomb terms, or compensating the delay")
+_SPRING_HINT = (
+    "a passive stiffness cannot be negative; likely an unmodelled load (gravity, a preload), "
+    "backlash impacts, or too little deflection to resolve the spring; try larger loads or "
+    "amplitudes, a longer window, or give the value (--stiffness)")
+_ILL_HINT = (
+    "the data hardly determine it (the interval reaches zero); excite more (larger amplitude, "
+    "more cycles or loads), or give the value if it is known")
 
 _INERTIA_HINT = (
     "likely an unmodelled load (gravity on a vertical axis, a spring), backlash impacts, or "
@@ -79,6 +116,7 @@ def check_plausibility(est: Estimate) -> Estimate:
     'M = -0.4 kg is not positive: like'
     """
     messages = []
+    at_bound: dict[str, Any] = {}
     for name, par in est.params.items():
         if par.fixed or not math.isfinite(par.value):
             continue
@@ -86,7 +124,13 @@ def check_plausibility(est: Estimate) -> Estimate:
         # below zero by more than 2 standard errors: a true value >= 0 gives that in < 2.3 %
         error = par.stderr if math.isfinite(par.stderr) and par.stderr > 0 else 0.0
         negative = par.value < -_SIGNIFICANT * error
-        if name in _INERTIA and par.value <= 0:
+        bounded = _bounded_hint(name)
+        if name in (est.diagnostics.get("at_bound") or {}):
+            continue  # the estimator held it at its bound and said so
+        if bounded is not None and (par.value < 0 or error >= _ILL * abs(par.value)):
+            at_bound[name] = _bound_record(par.value, error)
+            messages.append(_bounded_message(value, par.value, error, bounded))
+        elif name in _INERTIA and par.value <= 0:
             messages.append(f"{value} is not positive: {_INERTIA_HINT}")
         elif name in _STIFFNESS and negative:
             messages.append(f"{value} is negative: {_STIFFNESS_HINT}")
@@ -95,7 +139,93 @@ def check_plausibility(est: Estimate) -> Estimate:
         elif (name in _POSITIVE and error > abs(par.value) and par.value != 0):
             messages.append(f"{value} has a standard error {par.stderr:.3g} larger than its "
                             f"value: {_ERROR_HINT}")
-    return est.with_warnings(*messages)
+    out = est.with_warnings(*messages)
+    if at_bound:
+        previous = dict(est.diagnostics.get("at_bound") or {})
+        out = dataclasses.replace(out, diagnostics={
+            **out.diagnostics, "at_bound": {**at_bound, **previous}})
+    return out
+
+
+def held_at_zero(name: str, value: float, stderr: float, unit: str, cause: str
+                 ) -> tuple[dict[str, Any], str]:
+    """Describe an estimate held at its physical bound 0 after an unconstrained fit fell below.
+
+    Parameters
+    ----------
+    name : str
+        Parameter name, e.g. ``"gap"``.
+    value : float
+        The unconstrained estimate [unit]; negative.
+    stderr : float
+        Its standard error [unit] (nan if none).
+    unit : str
+        Unit for the message.
+    cause : str
+        The likely cause and what to try, in plain words.
+
+    Returns
+    -------
+    tuple of (dict, str)
+        The ``diagnostics["at_bound"][name]`` entry and the warning.
+
+    Examples
+    --------
+    >>> entry, msg = held_at_zero("gap", -0.037, 0.016, "rad", "preload")
+    >>> entry["at_bound"], round(entry["upper_95"], 4), msg[:24]
+    (True, 0.0, 'gap held at its bound 0:')
+    """
+    error = stderr if math.isfinite(stderr) and stderr > 0 else 0.0
+    entry = _bound_record(min(value, 0.0), error)
+    interval = (f"; the data allow [0, {entry['upper_95']:.3g}] {unit} (one-sided 95 %)"
+                if error > 0 else "")
+    if error > 0 and entry["upper_95"] == 0.0:
+        interval = (f"; 0 is {abs(value) / error:.1f} standard errors above it, so the model "
+                    "does not describe these data")
+    se_text = f" ± {error:.2g}" if error > 0 else ""
+    return entry, (f"{name} held at its bound 0: the unconstrained fit gave {value:.4g}"
+                   f"{se_text} {unit}{interval}; {cause}")
+
+
+def _bounded_hint(name: str) -> str | None:
+    # multi-mode estimators number their modes: zeta_1, K_2 … are judged like zeta, K
+    base, _, tail = name.rpartition("_")
+    if base and tail.isdigit():
+        name = base
+    if name in _GAP:
+        return GAP_HINT
+    if name.startswith("Fv"):
+        return _FRICTION_HINT  # viscous friction of a drive fitted from forces
+    if name in _DAMPING:
+        return _DAMPING_HINT
+    if name in _SPRING:
+        return _SPRING_HINT
+    return None
+
+
+def _bound_record(value: float, error: float) -> dict[str, Any]:
+    """Return the bound 0, the unconstrained estimate and the one-sided 95 % upper limit."""
+    upper = max(value + _ONE_SIDED_95 * error, 0.0) if error > 0 else max(value, 0.0)
+    return {"bound": 0.0, "value": float(value), "stderr": float(error),
+            "at_bound": bool(value <= 0.0), "upper_95": float(upper),
+            "interval": "one-sided [0, upper_95]" if value <= 0.0 else "two-sided"}
+
+
+def _bounded_message(text: str, value: float, error: float, hint: str) -> str:
+    if value < 0:
+        within = (f", {abs(value) / error:.1f} standard errors below 0" if error > 0 else "")
+        upper = max(value + _ONE_SIDED_95 * error, 0.0)
+        bound = (f"; under the bound >= 0 the data allow [0, {upper:.3g}] (one-sided 95 %)"
+                 if error > 0 and upper > 0 else "")
+        if error > 0 and value > -_SIGNIFICANT * error:
+            # a true 0 (a free axis, no gap) lands this far below it in ~1 fit of 40
+            return (f"{text} is negative but within {_SIGNIFICANT:g} standard errors of 0, so "
+                    f"consistent with none{bound}; if it should not be 0: {hint}")
+        return f"{text} is negative{within}{bound}: {hint}"
+    if value == 0:
+        return f"{text} sits at its bound 0: {_ILL_HINT}"
+    return (f"{text} is ill-determined (standard error {error:.3g}, at least half its value): "
+            f"{_ILL_HINT}")
 
 
 def plausibility_checked(func: Callable[..., Estimate]) -> Callable[..., Estimate]:

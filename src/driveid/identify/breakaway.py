@@ -31,10 +31,11 @@ from driveid.signal.steady import noise_level
 __all__ = ["estimate_breakaway_sliding", "rising_friction_from_breakaways"]
 
 
-def _rate(x: np.ndarray, fs: float, window: int) -> np.ndarray:
-    # displacement over the window divided by its duration, attributed to its end sample
+def _rate(x: np.ndarray, t: np.ndarray, window: int) -> np.ndarray:
+    # displacement over the window divided by its actual duration (the timestamps, so an
+    # uneven clock needs no resampling), attributed to its end sample
     rate = np.zeros_like(x)
-    rate[window:] = (x[window:] - x[:-window]) * fs / window
+    rate[window:] = (x[window:] - x[:-window]) / (t[window:] - t[:-window])
     return rate
 
 
@@ -162,7 +163,7 @@ def _ramps(rec: Record, k: int, v_break: float, window: float | None,
     w = 10 if window is None else max(1, round(window * fs))
     if window is not None and not (math.isfinite(window) and window > 0):
         raise ParameterError(f"window must be a positive duration [s]; got {window}")
-    rate = _rate(x, fs, w)
+    rate = _rate(x, np.asarray(rec.t, float), w)
     steps = np.abs(np.diff(x))
     quantum = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
     du = float(np.median(np.abs(np.diff(u))))

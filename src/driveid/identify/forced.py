@@ -69,12 +69,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize_scalar
+from scipy.optimize import lsq_linear, minimize_scalar
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify._plausibility import plausibility_checked
+from driveid.identify._plausibility import held_at_zero, plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.pho import delay_factors
 from driveid.identify.sine_fit import SineResponse, fit_sine_response, record_list  # noqa: F401 (re-export)
@@ -220,6 +221,13 @@ def _estimate(records, omega, P, D, delay, K_known, settle_tol, min_periods, met
         delay, full = _fit_delay(solve, Aw, Lt, w, (lo, hi), p)
         delay_se = math.nan
     theta, resid, _ = solve(float(delay))
+    unconstrained = None
+    if not estimated and np.any(theta < 0):
+        # J > 0, c >= 0, K >= 0: bounded least squares on the same whitened rows; the
+        # covariance (below) stays the unconstrained one
+        unconstrained = theta.copy()
+        res = lsq_linear(Aw, Aw @ theta - resid, bounds=(0.0, np.inf))
+        theta = np.where(res.active_mask < 0, 0.0, res.x)
     chi2 = float(resid @ resid)
     design = full if estimated else Aw
     norms = np.linalg.norm(design, axis=0)
@@ -245,6 +253,17 @@ def _estimate(records, omega, P, D, delay, K_known, settle_tol, min_periods, met
     if method == "forced-pho":
         params["delay"] = Parameter(float(delay), delay_se, "s", fixed=not estimated)
     warnings = []
+    at_bound = {}
+    if unconstrained is not None:
+        for j, name in enumerate(("J", "c_mean", "K")[:p]):
+            if unconstrained[j] < 0 and theta[j] == 0.0:
+                at_bound[name], message = held_at_zero(
+                    name, float(unconstrained[j]), float(se[j]), params[name].unit,
+                    "a passive drive cannot have it; likely friction or backlash read as "
+                    "linear damping or stiffness (the response is not sinusoidal), unsettled "
+                    "runs, or too few frequencies around the resonance; the other "
+                    "parameters were refitted with it at 0")
+                warnings.append(message)
     distortion = np.array([f.response_distortion for f in fits])
     if distortion.max() > WARN_RESPONSE_DISTORTION:
         warnings.append(
@@ -286,9 +305,29 @@ def _estimate(records, omega, P, D, delay, K_known, settle_tol, min_periods, met
             "n_frequencies": n_freq,
             "max_response_distortion": float(distortion.max()),
             "max_input_distortion": float(max(f.input_distortion for f in fits)),
+            "noise": [f.noise for f in fits],
+            "adequacy": _adequacy(fits, chi2, dof),
+            **({"at_bound": at_bound} if at_bound else {}),
         },
         warnings=tuple(warnings),
     )
+
+
+def _adequacy(fits: list[Any], chi2: float, dof: int) -> dict[str, Any]:
+    """Per-run residual whiteness (after the AR noise model) and the across-run χ²."""
+    white = [bool(f.noise.get("whiteness", {}).get("white", True)) for f in fits]
+    notes = []
+    coloured = [i for i, f in enumerate(fits) if f.noise.get("x", {}).get("order", 0) > 0]
+    if coloured:
+        notes.append(f"runs {coloured} have coloured response noise: their phasor errors come "
+                     "from the AR noise model (the spectrum at the excitation frequency)")
+    if not all(white):
+        notes.append(f"runs {[i for i, ok in enumerate(white) if not ok]} leave residuals that "
+                     "are not white even after the noise model (an unsettled transient, a "
+                     "drifting offset or friction that is not viscous)")
+    ratio = chi2 / dof if dof > 0 else math.nan
+    return {"runs_white": white, "chi2_per_dof": ratio,
+            "adequate": bool(all(white) and not ratio > 100.0), "notes": notes}
 
 
 @plausibility_checked
@@ -339,11 +378,16 @@ def estimate_forced_response(
         ``t_start`` [s], ``n_periods``. Diagnostics: ``chi2``, ``dof``, ``birge_ratio``,
         ``condition`` (of the column-scaled weighted design), ``max_relative_misfit`` (largest
         run residual over its |H|), ``n_records``, ``n_frequencies``,
-        ``max_response_distortion``, ``max_input_distortion``. A warning is attached when
-        the response has over 5 % harmonics, or when the runs disagree both statistically
-        (chi2/dof > 100) and materially (misfit > 0.1 % of |H|). With ``friction``:
-        the fields of :func:`driveid.identify.forced_friction.estimate_forced_friction`
-        (adds ``fk_mean``, ``c_delta``, ``fk_delta``; NaN where not identified).
+        ``max_response_distortion``, ``max_input_distortion``, ``noise`` (per run the AR
+        noise models of the sine fits, which set the phasor errors), ``adequacy`` (per-run
+        whiteness after the noise model, χ²/dof) and ``at_bound`` (J, c_mean, K held at 0
+        by the bounded fit: J > 0, c >= 0, K >= 0, with the unconstrained value and the
+        one-sided 95 % limit; delay given). A warning is attached when a parameter is held
+        at its bound, when the response has over 5 % harmonics, or when the runs disagree
+        both statistically (chi2/dof > 100) and materially (misfit > 0.1 % of |H|). With
+        ``friction``: the fields of
+        :func:`driveid.identify.forced_friction.estimate_forced_friction` (adds
+        ``fk_mean``, ``c_delta``, ``fk_delta``; NaN where not identified).
 
     Raises
     ------

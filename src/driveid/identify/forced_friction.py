@@ -91,6 +91,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify._noise import fit_noise_model
 from driveid.identify._plausibility import plausibility_checked
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.identify.pho import delay_factors
@@ -173,7 +174,8 @@ def sine_harmonics(record: Record, *, omega: float | None = None, settle_tol: fl
     Returns
     -------
     SineHarmonics
-        Fundamental fit, means with standard errors (white residuals), drift, harmonics.
+        Fundamental fit, means with standard errors (AR(p) residual noise model, white
+        when BIC says so), drift, harmonics.
 
     Raises
     ------
@@ -228,7 +230,13 @@ def _lsq(basis: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     coef = inv @ (basis.T @ y)
     resid = y - basis @ coef
     s2 = float(resid @ resid) / max(basis.shape[0] - basis.shape[1], 1)
-    return coef, s2 * inv
+    # coloured noise (a filtered sensor) hits the means hardest: their error is set by the
+    # noise spectrum near 0 Hz; an AR(p) model of the residual gives it (order 0: white)
+    model = fit_noise_model(resid, n_params=basis.shape[1])
+    if model.is_white:
+        return coef, s2 * inv
+    bw = model.whiten(basis)
+    return coef, model.innovation_variance * np.linalg.inv(bw.T @ bw)
 
 
 def _second_harmonic_c_delta(h, w, V, J, K, c, fk, Pv, Dv, delay) -> np.ndarray:
@@ -557,6 +565,8 @@ def estimate_forced_friction(
         "max_stuck_fraction": float(max(r.stuck_fraction for r in h)),
         "not_identified": sorted(set(not_identified)),
         "c_delta_2w_median": float(np.median(c2w)),
+        "noise": [r.fit.noise for r in h],
+        "runs_white": [bool(r.fit.noise.get("whiteness", {}).get("white", True)) for r in h],
     }
     if offset_free:
         diagnostics["dc_force_offset"], diagnostics["dc_force_offset_se"] = fitted["fk_delta"]

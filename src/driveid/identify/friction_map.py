@@ -170,6 +170,10 @@ def steady_points(
     if record.v is not None:
         v = np.asarray(record.v, dtype=float)
     else:
+        # the low-pass and the differences assume one interval: an uneven clock is put on
+        # the median grid first, with a warning saying so
+        record = record.resampled_uniform(
+            purpose="differentiating the position for the friction map")
         fc = record.fs / 20.0 if cutoff_hz is None else cutoff_hz
         _, v, _ = differentiate(record.x, record.fs, cutoff_hz=fc)
     u = np.asarray(record.u, dtype=float)
@@ -239,6 +243,8 @@ def binned_points(
         raise ParameterError(f"inertia must be >= 0 [kg or kg·m²]; got {inertia}")
     if int(bins) != bins or bins < 3:
         raise ParameterError(f"bins must be an integer >= 3; got {bins}")
+    record = record.resampled_uniform(
+        purpose="differentiating the position for the friction map")
     fc = record.fs / 20.0 if cutoff_hz is None else cutoff_hz
     _, v_x, a = differentiate(record.x, record.fs, cutoff_hz=fc)
     v = np.asarray(record.v, float) if record.v is not None else v_x

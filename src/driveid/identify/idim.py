@@ -26,6 +26,7 @@ from scipy import signal as sps
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify._expressions import evaluate_expression, parse_expression
+from driveid.identify._idim_noise import _held, _lag1, _solve
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.signal.differentiate import differentiate
@@ -174,6 +175,10 @@ def idim_regressor(
             "(CLI: --force NAME); got a record with columns "
             f"{list(record.columns)}"
         )
+    # the Butterworth filter, the differences and the decimation assume one sampling interval;
+    # an uneven clock (a robot log with 1-13 ms steps) is put on the median grid first, warned
+    record = record.resampled_uniform(
+        purpose="IDIM's zero-phase filter, differentiation and decimation")
     fs = record.fs
     if not cutoff_hz < fs / 2:
         raise ParameterError(
@@ -243,7 +248,9 @@ def _as_records(records: Record | Sequence[Record]) -> list[Record]:
     if not recs or not all(isinstance(r, Record) for r in recs):
         raise ParameterError("records must be a Record or a non-empty sequence of Records; "
                              f"got {type(records).__name__}")
-    return recs
+    # once here, so that the cut-off check's refits do not warn again
+    return [r.resampled_uniform(purpose="IDIM's zero-phase filter, differentiation and "
+                                "decimation") for r in recs]
 
 
 def _stack(recs: list[Record], loads: list[Any], settings: dict[str, Any]
@@ -265,6 +272,7 @@ def estimate_idim(
     weights: str | Sequence[float] | None = None,
     min_speed: float | None = None,
     sensitivity: bool = True,
+    noise: str = "ar",
 ) -> Estimate:
     """Estimate inertia, viscous and Coulomb friction (and offset) by IDIM-LS.
 
@@ -307,6 +315,12 @@ def estimate_idim(
     sensitivity : bool
         Also estimate at ``cutoff_hz/√2`` and ``cutoff_hz·√2`` (below 0.45 fs) and warn
         when the inertia moves by more than its standard error (and more than 1 %).
+    noise : {"ar", "white"}
+        ``"ar"`` (default): feasible generalised least squares with an AR(p) model of the
+        force residual (order by BIC, fitted per contiguous run), the regressors and force
+        prewhitened and the fit repeated; white residuals give exactly the ordinary
+        least-squares fit. ``"white"``: ordinary least squares with white-noise error bars
+        (the EMPS benchmark's published recipe).
 
     Returns
     -------
@@ -314,12 +328,19 @@ def estimate_idim(
         ``M`` [kg] (``J`` [kg·m²] when x is not in m), ``Fv`` [N·s/m], ``Fc`` [N],
         ``offset`` [N] (fixed when given) or the asymmetric set, and ``k[<expr>]``, each
         with the standard error ``sqrt(σ²·diag((WᵀΛW)⁻¹))``, ``σ² = eᵀΛe/(m − p)``.
-        ``covariance`` of the estimated parameters. Diagnostics: ``cond``,
+        ``covariance`` of the estimated parameters (from the prewhitened regressors; the
+        Newey–West sandwich when even the prewhitened residuals are not white).
+        Diagnostics: ``noise_model`` (order, AR coefficients, ``n_eff``), ``adequacy``
+        (Ljung–Box whiteness of the prewhitened residuals, their cross-correlation with the
+        prewhitened velocity, covariance kind, notes), ``stderr_white`` (the ordinary
+        least-squares standard errors, for comparison), ``cond``,
         ``relative_error_pct`` (``100·||e||/||y||``), ``error_norm``, ``error_std``,
-        ``n``, ``n_records``, ``residual_lag1`` (lag-1 autocorrelation of the residual:
-        the standard errors assume it is near 0), ``inertia_share_pct`` (the part of the
+        ``n``, ``n_records``, ``residual_lag1`` (lag-1 autocorrelation of the residual;
+        the noise model accounts for it), ``inertia_share_pct`` (the part of the
         force that ``M·a`` explains), ``cutoff_sensitivity`` (inertia at the three
-        cut-offs), ``unphysical`` (names with a sign impossible for a passive drive) and
+        cut-offs), ``unphysical`` (names with a sign impossible for a passive drive),
+        ``at_bound`` (M, Fv, Fc held at 0 by the bounded fit: the unconstrained value and
+        the one-sided 95 % upper limit) and
         the settings. ``data_used`` holds decimated ``t``, ``force``, ``predicted``,
         ``velocity`` and ``record_index``.
 
@@ -335,6 +356,19 @@ def estimate_idim(
 
     Notes
     -----
+    Force residuals of real drives are coloured (unmodelled dynamics, the loop's own
+    noise, the decimation filter): ordinary least squares stays consistent but its
+    white-noise error bars are too small by up to ``sqrt(n/n_eff)``. With ``noise="ar"``
+    the residual ``e`` of each contiguous run of decimated rows is modelled as AR(p),
+    ``A(q) e = w``, and θ re-estimated from ``A(q) y = A(q) W θ + w`` (feasible GLS,
+    Ljung 1999 §7.2; two passes), with covariance ``σ_w² (W_wᵀ W_w)⁻¹`` of the
+    prewhitened ``W_w`` (:mod:`driveid.identify._noise`).
+
+    The fit is bounded by physics (M > 0, Fv >= 0, Fc >= 0 and their ``_plus``/``_minus``
+    forms): when the unconstrained estimate crosses a bound, bounded least squares
+    (:func:`scipy.optimize.lsq_linear`) on the same rows holds it at 0 and refits the
+    others; ``diagnostics["at_bound"]`` and a warning say so.
+
     Ordinary least squares is unbiased only if the force noise is uncorrelated with the
     regressors; in closed loop it is not, but the benchmark shows the bias is small when
     the filter cut-off is well above the loop bandwidth (Janot et al. 2019, §3.3). Noise
@@ -379,11 +413,16 @@ def estimate_idim(
     _check_motion(v_all, model, offset)
     w = _weights(weights, len(recs))
     support = _support(v_all, model, p)
-    theta, cov, e, W, y, keep = _solve(blocks, w, support)
+    if noise not in ("ar", "white"):
+        raise ParameterError(f"noise must be 'ar' or 'white'; got {noise!r}")
+    positive = np.array([True] * (5 if model == "asymmetric" else 3) + [False] * (
+        p - (5 if model == "asymmetric" else 3)))
+    theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise, positive=positive)
     if weights == "auto":
         var = np.array([max(float(np.mean(e[i] ** 2)), 1e-300) for i in range(len(blocks))])
         w = 1.0 / var
-        theta, cov, e, W, y, keep = _solve(blocks, w, support)
+        theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise,
+                                                positive=positive)
     first = recs[0]
     translational = first.units.get("x", "rad") == "m"
     force_unit = first.units.get("u", "N" if translational else "N·m")
@@ -430,11 +469,22 @@ def estimate_idim(
         "weights": [float(x) for x in w],
         "source": str(first.meta.get("source", "")),
         "force_unit": force_unit,
+        "noise": noise,
+        "noise_model": fit["noise_model"].to_dict(),
+        "adequacy": fit["adequacy"].to_dict(),
+        "stderr_white": {nm: float(s_) for nm, s_ in
+                         zip(est_names, np.sqrt(np.diag(fit["cov_white"])), strict=True)},
     }
-    warnings = _warnings(params, names, keep, diagnostics, model)
+    held = _held(fit, theta, names, units, stderr)
+    warnings = _warnings(params, names, keep, diagnostics, model) + fit["warnings"]
+    if held:
+        diagnostics["at_bound"] = {nm: entry for nm, (entry, _) in held.items()}
+        diagnostics["unphysical"] = sorted(set(diagnostics["unphysical"]) | set(held),
+                                           key=names.index)
+        warnings += [message for _, message in held.values()]
     if sensitivity:
         warnings += _cutoff_check(recs, loads, settings, w, params[inertia], inertia,
-                                  diagnostics)
+                                  diagnostics, noise)
     est = Estimate(
         method=f"idim-ls-{model}",
         params=params,
@@ -489,29 +539,6 @@ def _support(v: np.ndarray, model: str, p: int) -> np.ndarray:
     return support
 
 
-def _solve(blocks: list[Any], w: np.ndarray, support: np.ndarray) -> tuple[Any, ...]:
-    W = np.vstack([b[0] for b in blocks])
-    y = np.concatenate([b[1] for b in blocks])
-    root = np.concatenate([np.full(b[1].size, math.sqrt(wi)) for b, wi in zip(blocks, w,
-                                                                             strict=True)])
-    # a column with no support (a direction never travelled) carries no information
-    keep = support & (np.max(np.abs(W), axis=0) > 0)
-    theta_k, cov_k, _ = _ols(W[:, keep] * root[:, None], y * root)
-    theta = np.zeros(W.shape[1])
-    theta[keep] = theta_k
-    cov = np.full((W.shape[1], W.shape[1]), math.nan)
-    cov[np.ix_(keep, keep)] = cov_k
-    e_all = y - W @ theta
-    splits = np.cumsum([b[1].size for b in blocks])[:-1]
-    return theta, cov, np.split(e_all, splits), W, np.split(y, splits), keep
-
-
-def _lag1(residuals: list[np.ndarray]) -> float:
-    num = sum(float(r[1:] @ r[:-1]) for r in residuals if r.size > 1)
-    den = sum(float(r @ r) for r in residuals)
-    return num / den if den > 0 else 0.0
-
-
 def _warnings(params: dict[str, Parameter], names: tuple[str, ...], keep: np.ndarray,
               diag: dict[str, Any], model: str) -> list[str]:
     out = []
@@ -546,18 +573,12 @@ def _warnings(params: dict[str, Parameter], names: tuple[str, ...], keep: np.nda
     if any(r > 0.3 for r in rel_se):
         out.append("some relative standard errors exceed 30 %; excite the drive "
                    "over a wider range of velocity and acceleration")
-    if diag["residual_lag1"] > 0.5:
-        rho = diag["residual_lag1"]
-        out.append(
-            f"residuals are correlated (lag-1 autocorrelation {rho:.2f}), so the standard "
-            f"errors are too small by about a factor {math.sqrt((1 + rho) / (1 - rho)):.2g}"
-            "; the model misses some dynamics or the decimation is too small")
     return out
 
 
 def _cutoff_check(recs: list[Record], loads: list[Any], settings: dict[str, Any],
-                  w: np.ndarray, pj: Parameter, inertia: str, diag: dict[str, Any]
-                  ) -> list[str]:
+                  w: np.ndarray, pj: Parameter, inertia: str, diag: dict[str, Any],
+                  noise: str = "white") -> list[str]:
     fc = settings["cutoff_hz"]
     fs_min = min(r.fs for r in recs)
     values = {fc: pj.value}
@@ -567,7 +588,8 @@ def _cutoff_check(recs: list[Record], loads: list[Any], settings: dict[str, Any]
         try:
             blocks, _ = _stack(recs, loads, {**settings, "cutoff_hz": f})
             theta, *_ = _solve(blocks, w, _support(np.concatenate([b[3] for b in blocks]),
-                                                   settings["model"], blocks[0][0].shape[1]))
+                                                   settings["model"], blocks[0][0].shape[1]),
+                               noise=noise)
         except (IdentificationError, RecordError, ParameterError):
             continue
         values[f] = float(theta[0])
@@ -787,20 +809,3 @@ def _check_motion(v: np.ndarray, model: str, offset: float | None = None) -> Non
             "a run in the other direction, or fix the offset (offset=0.0, CLI --offset 0); "
             f"got {n_pos} positive and {n_neg} negative-velocity samples"
         )
-
-
-def _ols(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    m, p = W.shape
-    if m <= p:
-        raise IdentificationError(f"need more samples than parameters ({p}); got {m}")
-    theta, _, rank, sv = np.linalg.lstsq(W, y, rcond=None)
-    if rank < p:
-        raise IdentificationError(
-            f"observation matrix is rank-deficient (rank {rank} < {p}); excite both "
-            "acceleration and velocity (and every extra regressor independently); got rank "
-            f"{rank}"
-        )
-    e = y - W @ theta
-    sigma2 = float(e @ e) / (m - p)
-    cov = sigma2 * np.linalg.inv(W.T @ W)
-    return theta, cov, float(sv[0] / sv[-1])

@@ -17,7 +17,10 @@ hysteresis loop. Two shapes are analysed:
   the contact stiffness and the sliding levels.
 
 The applied force is taken as the friction/contact force: the test must be slow enough
-that inertia is negligible (check ``J·a`` against the force).
+that inertia is negligible (check ``J·a`` against the force). Both analyses use force
+against displacement in sample order, never the time step, so an uneven clock does not
+bias them; only the optional low-pass on the force resamples to the median interval (with
+a warning).
 """
 
 from __future__ import annotations
@@ -29,7 +32,12 @@ import numpy as np
 from scipy import optimize
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify._plausibility import check_plausibility, few_repeats_warning
+from driveid.identify._plausibility import (
+    GAP_HINT,
+    check_plausibility,
+    few_repeats_warning,
+    held_at_zero,
+)
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.signal.differentiate import zero_phase_lowpass
@@ -249,8 +257,13 @@ def estimate_backlash_loop(record: Record, *, threshold: float | None = None,
     line ``F = K·(x − x_a)`` and loads on the other side along ``F = K·(x − x_b)``; both
     are fitted between 20 % and 70 % of the sliding level (where the driven body sticks)
     and the gap is the distance ``|x_b − x_a|`` between their zero-force intercepts.
-    ``K`` is the mean of the two slopes.
+    ``K`` is the mean of the two slopes. The gap is bounded, ``gap >= 0``: a negative mean
+    (presliding friction or a preload read as a dead zone) is held at 0, reported in
+    ``diagnostics["at_bound"]`` with its one-sided 95 % upper limit, and warned.
     """
+    if lowpass_hz is not None:
+        # the filter needs one interval; the loop itself uses the sample order only
+        record = record.resampled_uniform(purpose="the low-pass on the force (--lowpass-hz)")
     x, u = _check(record)
     if lowpass_hz is not None:
         u = zero_phase_lowpass(u, record.fs, lowpass_hz)
@@ -317,6 +330,14 @@ def estimate_backlash_loop(record: Record, *, threshold: float | None = None,
 
     xu, fu_unit = record.units.get("x", "rad"), record.units.get("u", "N·m")
     gap = float(g.mean())
+    diagnostics: dict[str, Any] = {"n_reversals": n, "threshold": thr, "equation": "(2.27)"}
+    if gap < 0:
+        # gap >= 0: the mean of the reversals' gaps held at its bound
+        entry, message = held_at_zero("gap", gap, se(g), xu, GAP_HINT)
+        half, _ = held_at_zero("gap/2", gap / 2, se(g) / 2, xu, GAP_HINT)
+        diagnostics["at_bound"] = {"gap": entry, "gap_plus": half, "gap_minus": half}
+        warnings.append(message)
+        gap = 0.0
     params: dict[str, Any] = {
         "gap": Parameter(gap, se(g), xu),
         "gap_plus": Parameter(gap / 2, se(g) / 2, xu),
@@ -333,7 +354,7 @@ def estimate_backlash_loop(record: Record, *, threshold: float | None = None,
         method="loop-backlash-deadzone",
         params=params,
         data_used={"halves": halves, "gaps": g, "stiffness": k},
-        diagnostics={"n_reversals": n, "threshold": thr, "equation": "(2.27)"},
+        diagnostics=diagnostics,
         warnings=tuple(warnings),
     ))
 

@@ -10,12 +10,15 @@ dynamic stiffness ``H = R e^{jρ}`` (2.179) follows. Used by
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify._adequacy import ljung_box
+from driveid.identify._noise import NoiseModel, fit_noise_model
 from driveid.io.record import Record
 
 __all__ = ["MAX_INPUT_DISTORTION", "SineResponse", "fit_sine_response", "record_list"]
@@ -53,6 +56,10 @@ class SineResponse:
         RMS residual of the input sine fit over the input rms [-].
     response_distortion : float
         RMS residual (harmonics, noise) of the response fit over the response rms [-].
+    noise : dict
+        Noise models of the two fits (``"x"``, ``"u"``: order, AR coefficients, ``n_eff``,
+        see :meth:`driveid.identify._noise.NoiseModel.to_dict`) and ``"whiteness"``
+        (Ljung–Box of the prewhitened response residual).
     """
 
     omega: float
@@ -66,6 +73,7 @@ class SineResponse:
     n_periods: int
     input_distortion: float
     response_distortion: float
+    noise: dict[str, Any] = field(default_factory=dict)
 
     @property
     def amplitude_ratio(self) -> float:
@@ -99,6 +107,37 @@ def _lsq(basis: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.n
     s2 = float(resid @ resid) / dof
     cov = s2 * np.linalg.inv(basis.T @ basis)
     return coef, cov, resid
+
+
+#: Harmonics removed from a residual before its noise model is fitted [-].
+_HARMONICS = 5
+
+
+def _noise_covariance(basis: np.ndarray, resid: np.ndarray, tau: np.ndarray, omega: float
+                      ) -> tuple[np.ndarray, NoiseModel, dict[str, Any]]:
+    """Covariance of least-squares sine coefficients under an AR(p) noise model.
+
+    The harmonics 2ω…5ω of a nonlinear response are deterministic and orthogonal to the
+    fundamental over whole periods: they are regressed out of the residual before the AR
+    model is fitted, so that they are not mistaken for noise. The coefficients stay the
+    ordinary least-squares ones (for sinusoidal regressors they are asymptotically as
+    efficient as GLS: Grenander 1954); their covariance is ``σ_w² (B_wᵀ B_w)⁻¹`` with the
+    prewhitened basis ``B_w`` — the white-noise one when the model has order 0.
+    """
+    cols = [f(k * omega * tau) for k in range(2, _HARMONICS + 1) for f in (np.sin, np.cos)]
+    harm = np.column_stack(cols)
+    # normal equations: harmonics over whole periods are near-orthogonal (and an SVD
+    # lstsq costs ~30x more here)
+    noise = resid - harm @ np.linalg.solve(harm.T @ harm, harm.T @ resid)
+    model = fit_noise_model(noise, n_params=basis.shape[1] + harm.shape[1])
+    bw = model.whiten(basis)
+    cov = model.innovation_variance * np.linalg.inv(bw.T @ bw)
+    if model.is_white:
+        dof = max(basis.shape[0] - basis.shape[1], 1)
+        cov = float(resid @ resid) / dof * np.linalg.inv(basis.T @ basis)
+    white = ljung_box(model.whiten(noise), lags=max(20, model.order + 20),
+                      fitted=model.order)
+    return cov, model, {k: v for k, v in white.items() if k != "acf"}
 
 
 def _sine_basis(tau: np.ndarray, omega: float, drift: bool = False) -> np.ndarray:
@@ -183,7 +222,9 @@ def fit_sine_response(
     last window that deviates from the fit over the last quarter of the windows by more
     than the threshold. Over the steady window (whole
     periods) x is fitted with ``sin, cos``, an offset and a linear drift, u with ``sin, cos``
-    and an offset; standard errors assume white residuals (encoder quantisation, noise).
+    and an offset; their standard errors come from an AR(p) model of the residuals (order by
+    BIC, :mod:`driveid.identify._noise`; white residuals give the white-noise ones), so a
+    coloured sensor chain does not make them too small.
     Harmonics of a nonlinear response are orthogonal to the fundamental over whole periods
     and do not bias the phasors.
 
@@ -274,8 +315,10 @@ def fit_sine_response(
         )
     sel = (window >= first) & (window < n_win)
     basis_x = _sine_basis(tau[sel], omega, drift=True)
-    cx, cov_x, res_x = _lsq(basis_x, x[sel])
-    cu, cov_u, res_u = _lsq(basis_x[:, :3], u[sel])
+    cx, _, res_x = _lsq(basis_x, x[sel])
+    cu, _, res_u = _lsq(basis_x[:, :3], u[sel])
+    cov_x, model_x, white_x = _noise_covariance(basis_x, res_x, tau[sel], omega)
+    cov_u, model_u, _ = _noise_covariance(basis_x[:, :3], res_u, tau[sel], omega)
     input_distortion = _distortion(cu, res_u)
     X = complex(cx[0], cx[1])
     U = complex(cu[0], cu[1])
@@ -301,6 +344,7 @@ def fit_sine_response(
         n_periods=n_win - first,
         input_distortion=input_distortion,
         response_distortion=response_distortion,
+        noise={"x": model_x.to_dict(), "u": model_u.to_dict(), "whiteness": white_x},
     )
 
 

@@ -126,6 +126,9 @@ def estimate_square_wave(records: Record | Sequence[Record], *, smooth: float = 
     for rec in records:
         if rec.u is None:
             raise RecordError("a square-wave record needs the input u (column 'u'); got none")
+        # Savitzky-Golay derivatives assume one interval: an uneven clock is resampled, warned
+        rec = rec.resampled_uniform(purpose="the Savitzky-Golay derivatives of the square-wave "
+                                    "fit")
         dt = rec.dt
         win = max(int(round(smooth / dt)) | 1, 7)
         if win > rec.n // 2:

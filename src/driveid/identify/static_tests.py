@@ -15,11 +15,13 @@ Sign convention (DESIGN.md): static friction ``fs_mean + fs_delta·sgn(applied f
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from scipy import optimize
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify._plausibility import GAP_HINT, held_at_zero
 from driveid.identify.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.models.friction_memory import (
@@ -298,6 +300,10 @@ def estimate_backlash_stiffness(
     Model: ``x = x_center + (gap/2)·sgn(T) + T/K`` — the load takes up the gap, then
     deflects the compliance linearly (thesis §7 outline: "backlash can be determined by
     applying some constant torque and measuring the relative shaft displacements").
+    The gap is bounded, ``gap >= 0``: when the unconstrained fit gives a negative gap the
+    constrained least squares holds it at 0 (``x_center`` and ``K`` refitted without the
+    sign column), ``diagnostics["at_bound"]["gap"]`` gives the unconstrained value and the
+    one-sided 95 % upper limit, and a warning names the likely cause.
 
     Examples
     --------
@@ -328,6 +334,23 @@ def estimate_backlash_stiffness(
             "fitted compliance is not positive; the tests do not show elastic deflection "
             f"(loads too small or positions not settled); got {comp:.3g}"
         )
+    diagnostics: dict[str, Any] = {"n": int(T.size)}
+    warnings: list[str] = []
+    if half < 0:
+        # gap >= 0: the constrained least squares has the gap at 0, the rest refitted
+        entry, message = held_at_zero("gap", 2 * half, 2 * se[1], position_unit, GAP_HINT)
+        diagnostics["at_bound"] = {"gap": entry}
+        warnings.append(message)
+        theta2, se2, _ = _linear_fit(np.column_stack([np.ones_like(T), T]), x)
+        xc, comp, half = float(theta2[0]), float(theta2[1]), 0.0
+        se = [float(se2[0]), se[1], float(se2[1])]
+        if not comp > 0:
+            raise IdentificationError(
+                "with the gap held at its bound 0 (the unconstrained fit gave "
+                f"{2 * float(theta[1]):.3g}) the compliance is not positive: the positions fall "
+                "as the load rises through zero, which neither backlash nor a spring does "
+                "(positions read before they settled, a sign error in load or position, or a "
+                f"preload); check the test; got compliance {comp:.3g}")
     K = 1.0 / comp
     params = {
         "gap": Parameter(2 * half, 2 * se[1], position_unit),
@@ -339,7 +362,7 @@ def estimate_backlash_stiffness(
         params["gap_plus"] = Parameter(xc + half - x_ref, gse, position_unit)
         params["gap_minus"] = Parameter(x_ref - (xc - half), gse, position_unit)
     return Estimate(method="backlash-static-deflection", params=params,
-                    diagnostics={"n": int(T.size)})
+                    diagnostics=diagnostics, warnings=tuple(warnings))
 
 
 def estimate_static_stiffness(
