@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.signal import freqz, lfilter, ss2tf
+from scipy.signal import freqz, ss2tf
 
 from driveid.errors import ConfigError, IdentificationError, ParameterError, RecordError
 from driveid.identify._adequacy import ljung_box
@@ -70,6 +70,7 @@ from driveid.identify.transfer_models import (
     two_mass_model,
     zoh_filter,
 )
+from driveid.signal._blas import with_one_blas_thread
 
 __all__ = ["estimate_transfer", "transfer_function", "to_control", "TWO_MASS_PARAMETERS",
            "TWO_MASS_DEFAULT_FIXED"]
@@ -79,6 +80,7 @@ _STRUCTURES = ("tf", "two-mass")
 _MIN_SAMPLES = 20
 
 
+@with_one_blas_thread
 def estimate_transfer(record: Any, *, output: str = "v", structure: str = "tf",
                       order: int | None = None, max_order: int = 4, relative_degree: int = 1,
                       output_nonlinearity: str | None = None, side: str = "motor",
@@ -149,6 +151,7 @@ def estimate_transfer(record: Any, *, output: str = "v", structure: str = "tf",
     >>> from driveid.io import Record
     >>> t = np.arange(3000) * 1e-3
     >>> u = np.sign(np.sin(2 * np.pi * 7 * t) + np.sin(2 * np.pi * 31 * t))
+    >>> from scipy.signal import lfilter
     >>> y = lfilter(*zoh_filter(np.array([[-20.0]]), np.array([[20.0]]),
     ...                         np.array([[1.0]]), 1e-3), u)
     >>> est = estimate_transfer(Record(t=t, x=np.zeros_like(t), v=y, u=u), order=1)
@@ -527,7 +530,7 @@ def _estimate(fit, noise, t, u, y, dt, absolute, units, output, tried, period, n
 
 
 def _sign_of_model(fit, u, dt):
-    """The fitted linear output before |·| (its sign restores the measured speed's sign)."""
+    """Return the fitted linear output before |·| (its sign restores the measured sign)."""
     model, x, p = fit["model"], fit["x"], len(fit["model"].names)
     return simulate(model, fit["theta"], u, dt, zi=x[p:] * fit["y_scale"])
 
@@ -553,7 +556,7 @@ def _data_frf(t, u, y, period, nperseg, model, theta, dt) -> dict[str, Any]:
 
 
 def transfer_function(estimate: Estimate) -> Any:
-    """The identified model as a :class:`scipy.signal.TransferFunction` (continuous).
+    """Return the identified model as a :class:`scipy.signal.TransferFunction` (continuous).
 
     Parameters
     ----------
@@ -581,7 +584,7 @@ def transfer_function(estimate: Estimate) -> Any:
 
 
 def to_control(estimate: Estimate) -> Any:
-    """The identified model as a ``control.TransferFunction`` (python-control, optional).
+    """Return the identified model as a ``control.TransferFunction`` (python-control).
 
     Parameters
     ----------

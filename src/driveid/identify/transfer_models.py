@@ -45,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import expm
-from scipy.signal import lfilter, ss2tf
+from scipy.signal import lfilter
 
 from driveid.errors import IdentificationError, ParameterError
 
@@ -142,8 +142,12 @@ def zoh_filter(A: np.ndarray, B: np.ndarray, C: np.ndarray, dt: float
     block[:n, :n] = A
     block[:n, n:] = B
     E = expm(block * dt)
-    num, den = ss2tf(E[:n, :n], E[:n, n:], C, np.zeros((1, 1)))
-    return np.asarray(num[0], float), np.asarray(den, float)
+    Ad, Bd = E[:n, :n], E[:n, n:]
+    # SISO with D = 0: den = det(zI - Ad), num = det(zI - Ad + Bd C) - den (as ss2tf, without
+    # its checks, which cost ten times the rest on small systems)
+    den = np.real(np.poly(Ad))
+    num = np.real(np.poly(Ad - Bd @ C)) - den
+    return num, den
 
 
 def simulate(model: LinearModel, theta: np.ndarray, u: np.ndarray, dt: float,
@@ -189,7 +193,7 @@ def _poly_from_poles(pairs: np.ndarray, reals: np.ndarray) -> np.ndarray:
 
 
 def _companion(num: np.ndarray, den: np.ndarray):
-    """Controllable canonical form of a strictly proper ``num/den`` (den monic)."""
+    """Return the controllable canonical form of a strictly proper ``num/den`` (den monic)."""
     n = den.size - 1
     A = np.zeros((n, n))
     A[0, :] = -den[1:]
@@ -203,7 +207,7 @@ def _companion(num: np.ndarray, den: np.ndarray):
 
 def tf_model(n_pairs: int, n_real: int, n_num: int, *, start: np.ndarray | None = None,
              units: Mapping[str, str]) -> LinearModel:
-    """The pole-form transfer-function structure.
+    """Return the pole-form transfer-function structure.
 
     Parameters
     ----------
@@ -281,7 +285,7 @@ def _two_mass_ss(values: Mapping[str, float], side: str, quantity: str):
 
 def two_mass_model(*, side: str, quantity: str, fixed: Mapping[str, float],
                    start: Mapping[str, float], units: Mapping[str, str]) -> LinearModel:
-    """The two-inertia grey box measured at the motor or the load.
+    """Return the two-inertia grey box measured at the motor or the load.
 
     Parameters
     ----------
@@ -310,7 +314,8 @@ def two_mass_model(*, side: str, quantity: str, fixed: Mapping[str, float],
     unknown = set(fixed) - set(TWO_MASS_PARAMETERS)
     if unknown:
         raise ParameterError(
-            f"unknown two-mass parameter(s) {sorted(unknown)}; use {', '.join(TWO_MASS_PARAMETERS)}")
+            f"unknown two-mass parameter(s) {sorted(unknown)}; use "
+            f"{', '.join(TWO_MASS_PARAMETERS)}")
     if "gain" not in fixed and not {"J_m", "J_l", "k"} & set(fixed):
         raise ParameterError(
             "a free gain with free J_m, J_l and k is not identifiable (only ratios such as "
