@@ -305,6 +305,8 @@ def _best_tf_fit(u, y, candidates, dt, n, rel, absolute, units):
 
 def _two_mass_fit(u, y, candidates, dt, side, quantity, absolute, fixed, units):
     fixed = dict(TWO_MASS_DEFAULT_FIXED if fixed is None else fixed)
+    two_mass_model(side=side, quantity=quantity, fixed=fixed,  # refuse bad names first
+                   start=dict.fromkeys(TWO_MASS_PARAMETERS, 1.0), units=units)
     rel = 1 + (side == "load") + (quantity == "position")
     n = 3 if quantity == "speed" else 4
     tf_fit = _best_tf_fit(u, y, candidates, dt, n, rel, absolute, {"u": "", "y": ""})
@@ -335,7 +337,8 @@ def _two_mass_fit(u, y, candidates, dt, side, quantity, absolute, fixed, units):
 
 def _frequency_response(A, B, C, w):
     n = A.shape[0]
-    return np.array([(C @ np.linalg.solve(1j * wk * np.eye(n) - A, B))[0, 0] for wk in w])
+    stack = 1j * w[:, None, None] * np.eye(n) - A  # (m, n, n): one batched solve
+    return (C @ np.linalg.solve(stack, np.broadcast_to(B, (w.size, n, 1))))[:, 0, 0]
 
 
 def _two_mass_starts(A, B, C, side, quantity, fixed, dt, units):
@@ -372,7 +375,7 @@ def _two_mass_starts(A, B, C, side, quantity, fixed, dt, units):
         try:
             res = least_squares(mismatch, probe.start / probe.scale,
                                 bounds=(probe.lower / probe.scale, probe.upper / probe.scale),
-                                x_scale="jac", max_nfev=400)
+                                x_scale="jac", max_nfev=200)
             values.update(zip(free, res.x * probe.scale, strict=True))
             cost = float(res.cost)
         except (ValueError, np.linalg.LinAlgError):
