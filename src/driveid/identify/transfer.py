@@ -252,30 +252,36 @@ def _signals(record: Any, output: str) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def _unfold(y: np.ndarray) -> np.ndarray:
-    """Signed start for a magnitude output: flip the sign at each dip to near zero."""
-    level = float(np.percentile(y, 95))
-    low = y < 0.1 * level
-    out = y.copy()
-    sign, k, n = 1.0, 0, y.size
+    """Signed start for a magnitude output: flip the sign where ``|y|`` crosses zero.
+
+    A local minimum of ``|y|`` is a crossing when it is smaller than the change to its
+    neighbours (a signed signal passing zero between samples); a rounded minimum that
+    stays away from zero is not. With ``τ`` the crossing, ``|y|`` before it is larger than
+    after it when ``τ`` lies after the minimum sample, which then keeps the old sign.
+    """
+    n = y.size
     flips = np.zeros(n)
-    while k < n:
-        if low[k]:
-            j = k
-            while j < n and low[j]:
-                j += 1
-            flips[k + int(np.argmin(y[k:j]))] = 1.0
-            k = j
+    k = 1
+    while k < n - 1:
+        left, right = y[k - 1] - y[k], y[k + 1] - y[k]
+        if left >= 0 and right > 0 and y[k] < max(left, right):
+            flips[k + 1 if y[k - 1] > y[k + 1] else k] = 1.0
+            k += 2
         else:
             k += 1
-    sign = np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)
-    return out * sign
+    return y * np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)
 
 
 def _positive_gain(fit: dict[str, Any]) -> dict[str, Any]:
-    """Under ``|·|``, ``-G`` fits as well as ``G``: take the one with positive ``b_m``."""
+    """Under ``|·|``, ``-G`` fits as well as ``G``: take the one with a positive gain."""
     model, p = fit["model"], len(fit["model"].names)
-    lead = max(i for i, name in enumerate(model.names) if name.startswith("b_"))
-    if fit["theta"][lead] >= 0:
+    theta = fit["theta"]
+    poles = np.linalg.eigvals(model.state_space(theta)[0])
+    w_c = float(np.exp(np.mean(np.log(np.maximum(np.abs(poles), 1e-12)))))
+    # the numerator term that dominates in the pass band (near the poles) sets the sign
+    terms = [(abs(theta[i]) * w_c ** int(name[2:]), theta[i])
+             for i, name in enumerate(model.names) if name.startswith("b_")]
+    if max(terms)[1] >= 0:
         return fit
     flip = np.array([-1.0 if name.startswith("b_") else 1.0 for name in model.names]
                     + [-1.0] * (fit["x"].size - p))
@@ -288,6 +294,7 @@ def _bic(ssr: float, n: int, p: int) -> float:
 
 def _best_tf_fit(u, y, candidates, dt, n, rel, absolute, units):
     best = None
+    candidates = list(candidates)
     for signed in candidates:
         try:
             n_pairs, n_real, start = arx_start(u, signed, dt, n, rel)
@@ -300,6 +307,9 @@ def _best_tf_fit(u, y, candidates, dt, n, rel, absolute, units):
             continue
         if best is None or fit["ssr"] < best["ssr"]:
             best = fit
+        if absolute and signed is candidates[-1] and len(candidates) < 4:
+            # restore the sign from the best model so far and start again from the data
+            candidates.append(y * np.where(_sign_of_model(best, u, dt) >= 0, 1.0, -1.0))
     return best
 
 
