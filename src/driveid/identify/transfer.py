@@ -160,19 +160,22 @@ def estimate_transfer(record: Any, *, output: str = "v", structure: str = "tf",
     """
     t, u, y, units = _signals(record, output)
     if structure not in _STRUCTURES:
-        raise ParameterError(f"structure must be one of {_STRUCTURES}; got {structure!r}")
+        raise ParameterError(
+            f"structure (--structure) must be one of {_STRUCTURES}; got {structure!r}")
     if output_nonlinearity not in _NONLINEARITIES:
         raise ParameterError(
-            f"output_nonlinearity must be None or 'abs'; got {output_nonlinearity!r}")
+            f"output_nonlinearity (--output-nonlinearity) must be None or 'abs'; got "
+            f"{output_nonlinearity!r}")
     if side not in ("motor", "load"):
-        raise ParameterError(f"side must be 'motor' or 'load'; got {side!r}")
+        raise ParameterError(f"side (--side) must be 'motor' or 'load'; got {side!r}")
     for name, value, lo in (("max_order", max_order, 1), ("relative_degree", relative_degree, 1)):
         if not isinstance(value, int) or not lo <= value <= 8:
-            raise ParameterError(f"{name} must be an integer in {lo}..8; got {value!r}")
+            raise ParameterError(
+                f"{name} (--{name.replace('_', '-')}) must be an integer in {lo}..8; got {value!r}")
     if order is not None and (not isinstance(order, int) or not 1 <= order <= 8):
-        raise ParameterError(f"order must be an integer in 1..8 (poles); got {order!r}")
+        raise ParameterError(f"order (--order) must be an integer in 1..8 (poles); got {order!r}")
     if structure == "two-mass" and order is not None:
-        raise ParameterError("order is for structure 'tf'; the two-mass structure has its own")
+        raise ParameterError("--order is for --structure tf; the two-mass structure has its own")
     dt = float(np.median(np.diff(t)))
     absolute = output_nonlinearity == "abs"
     quantity = "speed" if output == "v" else "position"
