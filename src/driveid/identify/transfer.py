@@ -127,9 +127,11 @@ def estimate_transfer(record: Any, *, output: str = "v", structure: str = "tf",
         Method ``"transfer-oe"`` or ``"two-mass-oe"``: the structure's parameters, the
         resonances ``omega0_i`` [rad/s], ``zeta_i`` [-], standard errors and covariance;
         ``data_used``: ``num``, ``den`` (continuous transfer function, highest power
-        first), ``fs``, the data FRF (``f`` [Hz], ``frf_magnitude``, ``frf_phase``,
-        ``coherence``) and the model's (``model_magnitude``, ``model_phase``), ``t``, ``y``,
-        ``y_model``; diagnostics: fit [%], noise model, BIC per order, whiteness.
+        first), ``fs``, the data FRF (``f`` [Hz], ``frf_magnitude``, ``frf_phase`` [rad],
+        ``coherence``) and the model's ZOH response at those lines (``model_magnitude``,
+        ``model_phase``) and on a dense grid (``model_f``, ``model_magnitude_dense``,
+        ``model_phase_dense``), ``t``, ``y``, ``y_model``; diagnostics: fit [%], noise
+        model, BIC per order, whiteness.
 
     Raises
     ------
@@ -566,9 +568,13 @@ def _data_frf(t, u, y, period, nperseg, model, theta, dt) -> dict[str, Any]:
         return {"frf_note": f"no data FRF: {exc}"}
     num_d, den_d = zoh_filter(*model.state_space(theta), dt)
     _, Gm = freqz(num_d, den_d, worN=2 * np.pi * frf.f * dt)
+    # the model on a dense grid for the Bode plot (the data lines may be few)
+    f_dense = np.geomspace(max(frf.f[0] / 2, 1e-3 / dt), 0.5 / dt, 400)
+    _, Gd = freqz(num_d, den_d, worN=2 * np.pi * f_dense * dt)
     return {"f": frf.f, "frf_magnitude": np.abs(frf.G), "frf_phase": np.angle(frf.G),
             "coherence": frf.coherence, "model_magnitude": np.abs(Gm),
-            "model_phase": np.angle(Gm)}
+            "model_phase": np.angle(Gm), "model_f": f_dense,
+            "model_magnitude_dense": np.abs(Gd), "model_phase_dense": np.unwrap(np.angle(Gd))}
 
 
 def transfer_function(estimate: Estimate) -> Any:

@@ -41,11 +41,18 @@ def plot_transfer(estimate: Any) -> Any:
         f = np.asarray(du["f"], float)
         gamma2 = np.asarray(du["coherence"], float)
         colours = plt.get_cmap("viridis")(np.clip(gamma2, 0, 1))
-        mag.scatter(f, np.asarray(du["frf_magnitude"]), s=8, c=colours,
-                    label="data H1 (colour: coherence)")
-        mag.plot(f, np.asarray(du["model_magnitude"]), "r-", lw=1.2, label="model (ZOH)")
-        pha.scatter(f, np.degrees(np.asarray(du["frf_phase"])), s=8, c=colours)
-        pha.plot(f, np.degrees(np.asarray(du["model_phase"])), "r-", lw=1.2)
+        fm = np.asarray(du.get("model_f", f), float)
+        mag_m = np.asarray(du.get("model_magnitude_dense", du["model_magnitude"]), float)
+        pha_m = np.asarray(du.get("model_phase_dense", np.unwrap(du["model_phase"])), float)
+        mag.scatter(f, np.asarray(du["frf_magnitude"]), s=10, c=colours,
+                    label="data H1 (colour: coherence, yellow = 1)")
+        mag.plot(fm, mag_m, "r-", lw=1.2, label="model (ZOH)")
+        # each data phase shifted by whole turns to lie nearest the model's (unwrapped) phase
+        near = np.interp(f, fm, pha_m)
+        phase = np.asarray(du["frf_phase"], float)
+        phase = phase + 2 * np.pi * np.round((near - phase) / (2 * np.pi))
+        pha.scatter(f, np.degrees(phase), s=10, c=colours)
+        pha.plot(fm, np.degrees(pha_m), "r-", lw=1.2)
         coh.semilogx(f, gamma2, ".-", ms=3, lw=0.8)
         for ax in (mag, pha):
             ax.set_xscale("log")
