@@ -66,13 +66,15 @@ def main(argv=None):
     Parameters
     ----------
     argv : list of str, optional
-        Command-line arguments (``--repeats``, ``--duration``, ``--abs``, ``--quick``).
+        Command-line arguments (``--repeats``, ``--duration``, ``--abs``, ``--kind``,
+        ``--structure``, ``--quick``).
     """
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=200)
     ap.add_argument("--duration", type=float, default=2.0, help="record length [s]")
     ap.add_argument("--abs", action="store_true", help="speed-magnitude sensor")
     ap.add_argument("--kind", choices=["prbs", "multisine"], default="prbs")
+    ap.add_argument("--structure", choices=["tf", "two-mass", "both"], default="both")
     ap.add_argument("--quick", action="store_true", help="10 repeats")
     args = ap.parse_args(argv)
     repeats = 10 if args.quick else args.repeats
@@ -91,6 +93,8 @@ def main(argv=None):
     for structure, fields in (("tf", ["omega0_1", "zeta_1"]),
                               ("two-mass", ["omega0_1", "zeta_1", "J_m", "J_l", "k", "c",
                                             "c_m"])):
+        if args.structure not in ("both", structure):
+            continue
         err = {f: [] for f in fields}
         se = {f: [] for f in fields}
         cpu = 0.0

@@ -336,7 +336,7 @@ def _two_mass_fit(u, y, candidates, dt, side, quantity, absolute, fixed, units):
                      for s in _two_mass_starts(A, B, sign * C, side, quantity, fixed, dt,
                                                units)), key=lambda s: s[0])
     best = None
-    for _, start in starts[:2]:
+    for _, start in starts[:3]:
         model = two_mass_model(side=side, quantity=quantity, fixed=fixed, start=start,
                                units=units)
         try:
@@ -356,8 +356,55 @@ def _frequency_response(A, B, C, w):
     return (C @ np.linalg.solve(stack, np.broadcast_to(B, (w.size, n, 1))))[:, 0, 0]
 
 
+def _two_mass_from_coefficients(A, B, C, side, quantity):
+    """Per-unit-gain two-mass values (c_l = 0) from a third-order transfer function, or None.
+
+    Motor speed: ``G = (g/J_m)(s² + (c/J_l)s + k/J_l)/(s³ + a2 s² + a1 s + a0)`` with
+    ``a0 = k c_m/(J_m J_l)``, ``a1 = (k(J_m+J_l) + c c_m)/(J_m J_l)``; load speed:
+    ``G = g(c s + k)/(J_m J_l)/(…)`` with the same denominator and
+    ``a2 = c/J_l + (c + c_m)/J_m``. A position output has one more pole at the origin,
+    removed first.
+    """
+    num, den = ss2tf(A, B, C, np.zeros((1, 1)))
+    num = num[0] / den[0]
+    den = den / den[0]
+    if quantity == "position":
+        roots = np.roots(den)
+        den = np.real(np.poly(np.delete(roots, np.argmin(np.abs(roots)))))
+        num = np.polydiv(num, [1.0, 0.0])[0] if abs(num[-1]) < 1e-9 * np.max(np.abs(num)) \
+            else num
+    num = np.trim_zeros(num, "f")
+    if den.size != 4:
+        return None
+    _, a2, a1, a0 = den
+    with np.errstate(all="ignore"):
+        if side == "motor" and num.size == 3:
+            b2, b1, b0 = num
+            Jm = 1.0 / b2
+            cm = a0 * Jm * b2 / b0
+            Jl = Jm * ((a1 - (b1 / b2) * (cm / Jm)) / (b0 / b2) - 1.0)
+            k, c = (b0 / b2) * Jl, (b1 / b2) * Jl
+        elif side == "load" and num.size >= 2:
+            b1, b0 = num[-2:]
+            cm = a0 / b0
+            S = (a1 - b1 * cm) / b0
+            Jm = cm / (a2 - b1 * S)
+            Jl = S - Jm
+            P = Jm * Jl
+            k, c = b0 * P, b1 * P
+        else:
+            return None
+    values = {"gain": 1.0, "J_m": Jm, "J_l": Jl, "k": k, "c": c, "c_m": cm, "c_l": 0.0}
+    if not all(np.isfinite(v) and v >= 0 for v in values.values()) or min(Jm, Jl, k) <= 0:
+        return None
+    return {n: float(v) for n, v in values.items()}
+
+
 def _two_mass_starts(A, B, C, side, quantity, fixed, dt, units):
-    """``(mismatch, values)`` of physical starts matched to a fitted response (3 ratios)."""
+    """``(mismatch, values)`` of physical starts matched to a fitted response.
+
+    From the coefficients where they map to positive values, and from three inertia ratios.
+    """
     target_pairs = resonances(A)
     w_r = target_pairs[0][0] if target_pairs else 0.2 * math.pi / dt
     w = np.geomspace(w_r / 30, min(w_r * 10, 0.9 * math.pi / dt), 60)
@@ -366,12 +413,18 @@ def _two_mass_starts(A, B, C, side, quantity, fixed, dt, units):
     # below the resonance the drive moves as one body: |G| ≈ gain/(J_t ω) (speed)
     per_gain_Jt = 1.0 / (abs(G[lo]) * w[lo] ** (1 if quantity == "speed" else 2))
     free = [n for n in TWO_MASS_PARAMETERS if n not in fixed]
-    starts = []
+    guesses = []
+    analytic = _two_mass_from_coefficients(A, B, C, side, quantity)
+    if analytic is not None:
+        guesses.append(analytic)
     for ratio in (0.2, 0.5, 0.8):
         Jm, Jl = ratio * per_gain_Jt, (1 - ratio) * per_gain_Jt
         mu = Jm * Jl / (Jm + Jl)
-        guess = {"gain": 1.0, "J_m": Jm, "J_l": Jl, "k": w_r**2 * mu,
-                 "c": 2 * 0.05 * w_r * mu, "c_m": 0.1 * w_r / 30 * (Jm + Jl), "c_l": 0.0}
+        guesses.append({"gain": 1.0, "J_m": Jm, "J_l": Jl, "k": w_r**2 * mu,
+                        "c": 2 * 0.05 * w_r * mu, "c_m": 0.1 * w_r / 30 * (Jm + Jl),
+                        "c_l": 0.0})
+    starts = []
+    for guess in guesses:
         # per unit gain; scale to the given values
         g = fixed.get("gain")
         if g is None:
