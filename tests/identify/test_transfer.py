@@ -68,6 +68,17 @@ def test_two_mass_resonance_of_the_hand_written_matrix_is_the_closed_form():
     assert np.max(np.abs(poles)) == pytest.approx(expected, rel=1e-12)  # roundoff only
 
 
+@pytest.mark.parametrize("side", ["motor", "load"])
+def test_two_mass_start_inverts_the_transfer_coefficients_exactly(side):
+    from driveid.identify.transfer import _two_mass_from_coefficients
+
+    A, B, C = _matrices(side=side)
+    values = _two_mass_from_coefficients(A, B, C, side, "speed")
+    for name, truth in TRUTH.items():
+        # an algebraic inverse of the hand-written model: roundoff only
+        assert values[name] == pytest.approx(truth, rel=1e-9), name
+
+
 @pytest.mark.parametrize("kind", ["prbs", "multisine"])
 @pytest.mark.parametrize("structure", ["tf", "two-mass"])
 def test_resonance_within_2_percent_and_within_its_error(kind, structure):
