@@ -8,6 +8,7 @@ Main entry points (imported on first use, so ``import driveid`` stays fast)
 Records and files
     :class:`Record`, :func:`read_record`, :func:`write_record`
 Identification (each returns an :class:`Estimate` with standard errors)
+    :func:`identify_auto` (recognise the test shape, run what applies, keep the best),
     :func:`estimate_output_error` (whole-record free-decay fit, the default),
     :func:`estimate_log_decrement` (peaks, thesis 2.166-2.175),
     :func:`estimate_hilbert`, :func:`estimate_wavelet`, :func:`estimate_pho_campaign`,
@@ -71,6 +72,7 @@ _EXPORTS = {
     "write_record": "driveid.io",
     "Estimate": "driveid.identify.estimate",
     "Parameter": "driveid.identify.estimate",
+    "identify_auto": "driveid.identify.auto",
     "estimate_output_error": "driveid.identify.output_error",
     "estimate_log_decrement": "driveid.identify.logdec",
     "estimate_hilbert": "driveid.identify.hilbert",

@@ -346,6 +346,8 @@ _SIMULATE = {
     "drive": (_C + "drive:drive_command", "Lumped multi-body drive from TOML or a preset."),
 }
 _IDENTIFY = {
+    "auto": (_C + "auto:auto_command",
+             "Recognise the test in FILES and identify with what applies."),
     "logdec": (_C + "logdec:logdec_command",
                "Free decay: friction, damping, stiffness (output error or peaks)."),
     "hilbert": (_C + "instantaneous:hilbert_command",
