@@ -641,7 +641,7 @@ def _data_frf(t, u, y, period, nperseg, model, theta, dt) -> dict[str, Any]:
     num_d, den_d = zoh_filter(*model.state_space(theta), dt)
     _, Gm = freqz(num_d, den_d, worN=2 * np.pi * frf.f * dt)
     # the model on a dense grid for the Bode plot (the data lines may be few)
-    f_dense = np.geomspace(max(frf.f[0] / 2, 1e-3 / dt), 0.5 / dt, 400)
+    f_dense = np.geomspace(frf.f[0] / 2, 0.5 / dt, 400)
     _, Gd = freqz(num_d, den_d, worN=2 * np.pi * f_dense * dt)
     return {"f": frf.f, "frf_magnitude": np.abs(frf.G), "frf_phase": np.angle(frf.G),
             "coherence": frf.coherence, "model_magnitude": np.abs(Gm),
