@@ -54,6 +54,21 @@ def test_order_chosen_by_bic_on_the_fixture():
     assert min(bic, key=bic.get) == "3"
 
 
+def test_voltage_command_two_mass_with_a_free_gain():
+    # the fixture's model has no zero: a load-side two-mass with c ≈ 0; a free gain needs
+    # one mechanical value given (J_m), and is then in N·m per volt
+    data = _json(_run(FIXTURE, "--input", "u2", "--output", "z2", "--fs", 50,
+                      "--output-nonlinearity", "abs", "--input-unit", "V", "--structure",
+                      "two-mass", "--side", "load", "--free", "gain", "--fix", "J_m=0.01",
+                      "--json"))
+    par = data["parameters"]
+    assert par["gain"]["unit"] == "N·m/(V)" and not par["gain"]["fixed"]
+    assert par["J_m"]["fixed"] and par["J_m"]["stderr"] is None
+    for name in ("omega0_1", "zeta_1"):
+        # 4.4 standard errors: calibrated errors (false alarm 1e-5)
+        assert abs(par[name]["value"] - CED[name]) < 4.4 * par[name]["stderr"], name
+
+
 def _two_mass_csv(tmp_path):
     from scipy.signal import cont2discrete, dlsim
 
