@@ -12,7 +12,8 @@ Identification (each returns an :class:`Estimate` with standard errors)
     :func:`estimate_output_error` (whole-record free-decay fit, the default),
     :func:`estimate_log_decrement` (peaks, thesis 2.166-2.175),
     :func:`estimate_hilbert`, :func:`estimate_wavelet`, :func:`estimate_pho_campaign`,
-    :func:`estimate_forced_response`, :func:`estimate_idim`, :func:`estimate_friction_map`
+    :func:`estimate_forced_response`, :func:`estimate_idim`, :func:`estimate_friction_map`,
+    :func:`estimate_transfer` (command to speed or position: transfer function, two-mass)
 Validation
     :func:`compare` (simulate the identified model over a record: fit %, residuals)
 Simulation
@@ -81,6 +82,7 @@ _EXPORTS = {
     "estimate_forced_friction": "driveid.identify.forced_friction",
     "estimate_idim": "driveid.identify.idim",
     "estimate_friction_map": "driveid.identify.friction_map",
+    "estimate_transfer": "driveid.identify.transfer",
     "compare": "driveid.validate",
     "simulate_free_decay": "driveid.sim",
     "simulate_drive": "driveid.sim",

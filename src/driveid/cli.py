@@ -367,6 +367,8 @@ _IDENTIFY = {
     "step": (_C + "static:step_command", "Step response: frequency and damping."),
     "forced": (_C + "forced:forced_command", "Forced response: J, C, K from sine runs."),
     "envelope": (_C + "forced:envelope_command", "Viscous vs Coulomb envelope damping."),
+    "transfer": (_C + "transfer:transfer_command",
+                 "Linear drive model: command to speed or position (TF, two-mass)."),
 }
 
 

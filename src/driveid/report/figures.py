@@ -64,6 +64,10 @@ def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
         from driveid.report.forced_figures import plot_forced
 
         return plot_forced(estimate)
+    if method in ("transfer-oe", "two-mass-oe"):
+        from driveid.report.transfer_figures import plot_transfer
+
+        return plot_transfer(estimate)
     raise NotImplementedError(
         f"no figure for method {method!r}; friction maps are drawn by "
         "driveid.report.friction_figures.plot_friction_map(result)"
