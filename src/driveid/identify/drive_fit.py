@@ -246,10 +246,11 @@ def estimate_drive(
         Prewhiten by an AR noise model of each channel's residual (when the shared noise
         module is available); False: white noise.
     segment : float or None
-        Open loop: first fit segments of this length [s], each with its own initial state
-        (multiple shooting), then the whole records from that estimate; None: the whole
-        records only. A free-floating drive's simulated position integrates every error
-        of its parameters, and the whole-record objective then has many local minima.
+        Growing horizon: first fit the first ``segment`` seconds of every record, then
+        twice as much, and so on, each fit starting the next, then the whole records;
+        None: the whole records only. Late samples carry the accumulated phase and drift
+        error of a wrong start, and the whole-record objective then has local minima
+        (thesis-style trade-offs such as kinetic friction against backlash gap).
     max_nfev : int
         Most residual evaluations of each least-squares pass [-].
     parallel : bool
@@ -330,19 +331,19 @@ def estimate_drive(
                                      else None)
         if guesses:
             base, _, _ = with_values(start, np.zeros(nb), np.zeros(nb), guesses)
-    stages = []
-    if segment and use_u:
-        pieces = [piece for rec in recs for piece in _segments(rec, segment)]
-        if len(pieces) > len(recs):
-            stages.append(pieces)
-    for pieces in stages:  # multiple shooting: short segments, each with its own state
-        st = _stage(pieces, base, start, names, free_states, None, None, input_body, use_u,
-                    torque, parallel, max_nfev, False)
-        shared = dict(zip(names, st["sol"].x[:len(names)] * st["scale_all"][:len(names)],
-                          strict=True))
+    starts = None
+    for fraction in _horizons(recs, segment):
+        # growing horizon: the early part of a record holds little accumulated phase error,
+        # so its objective has few local minima; each stage starts the next
+        pieces = [_head(rec, fraction) for rec in recs]
+        st = _stage(pieces, base, start, names, free_states, x0, v0, input_body, use_u,
+                    torque, parallel, max_nfev, False, starts)
+        theta = st["sol"].x * st["scale_all"]
+        shared = dict(zip(names, theta[:len(names)], strict=True))
         base, _, _ = with_values(base, np.zeros(nb), np.zeros(nb), shared)
+        starts = _states_of(st, theta, len(names))
     st = _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, torque,
-                parallel, max_nfev, noise_model)
+                parallel, max_nfev, noise_model, starts)
     sol, fit, problems, index = st["sol"], st["fit"], st["problems"], st["index"]
     all_names, scale_all, states0 = st["all_names"], st["scale_all"], st["states0"]
     lower, upper, noise_info = st["lower"], st["upper"], st["noise_info"]
@@ -382,25 +383,38 @@ def estimate_drive(
 
 
 
-def _segments(rec: DriveRecord, length: float) -> list[DriveRecord]:
-    """Split a record into pieces of ``length`` seconds (multiple shooting)."""
-    n = rec.t.size
-    m = max(int(round(length * rec.fs)), 20)
-    if n < 2 * m:
-        return [rec]
-    edges = list(range(0, n - m // 2, m)) + [n]
-    edges = sorted(set(e for e in edges if e <= n - m // 2) | {n})
+def _horizons(recs, first: float | None) -> list[float]:
+    """Fractions of the records fitted before the whole: first, 2·first, 4·first ... [-]."""
+    if not first:
+        return []
+    total = min(float(r.t[-1] - r.t[0]) for r in recs)
+    out, h = [], float(first)
+    while h < 0.7 * total:
+        out.append(h / total)
+        h *= 2.0
+    return out
+
+
+def _head(rec: DriveRecord, fraction: float) -> DriveRecord:
+    n = max(int(round(fraction * rec.t.size)), 20)
+    return DriveRecord(t=rec.t[:n], u=None if rec.u is None else rec.u[:n],
+                       channels={c: y[:n] for c, y in rec.channels.items()}, meta=rec.meta)
+
+
+def _states_of(st: dict, theta: np.ndarray, n_shared: int) -> list:
+    """The fitted initial states of a stage, per record, for the next stage's start."""
     out = []
-    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
-        out.append(DriveRecord(t=rec.t[lo:hi] - rec.t[lo], u=None if rec.u is None else
-                               rec.u[lo:hi], channels={c: y[lo:hi] for c, y in
-                                                       rec.channels.items()},
-                               meta=rec.meta))
+    for prob, idx, (sx, sv) in zip(st["problems"], st["index"], st["states0"], strict=True):
+        sx, sv = sx.copy(), sv.copy()
+        for name, j in zip(prob.names[n_shared:], idx[n_shared:], strict=True):
+            body = int(name[4:name.index(".")]) - 1
+            (sx if name.endswith(".x0") else sv)[body] = theta[j]
+        out.append((sx, sv))
     return out
 
 
 def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, torque,
-           parallel, max_nfev, noise_model) -> dict:
+           parallel, max_nfev, noise_model, starts=None) -> dict:
     """One least-squares fit of shared parameters and per-record states (weighted twice)."""
     nb = start.n_bodies
     zero = np.zeros(nb)
@@ -412,7 +426,7 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
     all_names = list(names)
     problems, index, states0 = [], [], []
     for r, rec in enumerate(recs):
-        sx, sv = _initial_state(rec, base)
+        sx, sv = _initial_state(rec, base) if starts is None else starts[r]
         if x0 is not None:
             sx = np.broadcast_to(np.asarray(x0, float), (nb,)).copy()
         if v0 is not None:
