@@ -53,8 +53,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -402,7 +401,7 @@ def _head(rec: DriveRecord, fraction: float) -> DriveRecord:
 
 
 def _states_of(st: dict, theta: np.ndarray, n_shared: int) -> list:
-    """The fitted initial states of a stage, per record, for the next stage's start."""
+    """Return the fitted initial states of a stage, per record (the next stage's start)."""
     out = []
     for prob, idx, (sx, sv) in zip(st["problems"], st["index"], st["states0"], strict=True):
         sx, sv = sx.copy(), sv.copy()
@@ -485,8 +484,11 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
 
 
 def _pooled_sigma(problems, raw) -> list[np.ndarray]:
-    """Residual rms of each channel name over all records (a short stuck piece alone
-    would fit its quantised samples exactly and get an infinite weight)."""
+    """Return the residual rms of each channel name over all records.
+
+    Pooled: a short stuck piece alone would fit its quantised samples exactly and get an
+    infinite weight.
+    """
     sums: dict[str, list[float]] = {}
     for prob, res in zip(problems, raw, strict=True):
         for c, ch in enumerate(prob.channels):
