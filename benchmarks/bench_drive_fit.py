@@ -25,13 +25,15 @@ from driveid.sim.presets import preset_testbed
 NAMES = ["body1.J", "body1.c_mean", "body1.fk_mean", "body2.J", "body3.J",
          "link1.gap_plus", "link2.k", "feedback.delay"]
 ZERO = np.zeros(3)
-QUANTUM = 2 * np.pi / 8000
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=100)
     ap.add_argument("--start-off", type=float, default=0.35)
+    ap.add_argument("--counts-per-rev", type=float, default=8000.0,
+                    help="encoder resolution; 0: no quantisation")
+    ap.add_argument("--noise", type=float, default=2e-4, help="position noise sd [rad]")
     args = ap.parse_args()
     truth = preset_testbed()
     t0 = time.perf_counter()
@@ -50,8 +52,11 @@ def main() -> None:
     errors, times = [], []
     for seed in range(args.runs):
         rng = np.random.default_rng(seed)
-        chans = {c: np.round((res.x[i] + rng.normal(0, 2e-4, res.t.size)) / QUANTUM) * QUANTUM
+        chans = {c: res.x[i] + rng.normal(0, args.noise, res.t.size)
                  for c, i in (("x1", 0), ("x3", 2))}
+        if args.counts_per_rev:
+            q = 2 * np.pi / args.counts_per_rev
+            chans = {c: np.round(y / q) * q for c, y in chans.items()}
         rec = DriveRecord(t=res.t, channels=chans)
         t0 = time.perf_counter()
         est = estimate_drive(rec, start, estimate=NAMES)

@@ -364,10 +364,9 @@ _IDENTIFY = {
     "forced": (_C + "forced:forced_command", "Forced response: J, C, K from sine runs."),
     "envelope": (_C + "forced:envelope_command", "Viscous vs Coulomb envelope damping."),
     "drive": (_C + "identify_drive:drive_command",
-              "Fit the lumped drive of CONFIG (TOML) to measured motor and load records."),
+              "Fit the lumped drive of CONFIG (TOML) to motor and load records."),
     "subsystems": (_C + "identify_drive:subsystems_command",
-                   "Identify sections A, A+B, A+B+C in sequence and each part as their "
-                   "difference."),
+                   "Fit sections A, A+B, A+B+C; each part as their difference."),
 }
 
 

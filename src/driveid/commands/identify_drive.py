@@ -125,7 +125,7 @@ def read_drive_records(files, record_opts, *, channels: dict[str, str] | None = 
 @clean_errors
 def drive_command(config, files, estimate, channel, input_column, input_body, segment, white,
                   model_out, record_opts, output_opts):
-    """Fit the lumped drive of CONFIG (TOML) to measured motor and load records."""
+    """Fit the lumped drive of CONFIG (TOML) to motor and load records."""
     from driveid.identify.drive_fit import estimate_drive
     from driveid.io.safe_write import atomic_write_text
     from driveid.sim.config import load_drive_config
@@ -159,7 +159,7 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
 @output_options
 @clean_errors
 def subsystems_command(manifest, output_opts):
-    """Identify sections A, A+B, A+B+C in sequence and each part as their difference."""
+    """Fit sections A, A+B, A+B+C; each part as their difference."""
     from driveid.identify.subsystems import estimate_subsystems
 
     result = estimate_subsystems(manifest)

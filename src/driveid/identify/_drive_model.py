@@ -173,7 +173,20 @@ def parameter_names(params: DriveParams, *, states: bool = True) -> list[str]:
 
 
 def parameter_unit(name: str, units: str = "rad") -> str:
-    """Return the SI unit of a parameter name (``units``: "rad" rotational, "m" linear)."""
+    """Return the SI unit of a parameter name.
+
+    Parameters
+    ----------
+    name : str
+        TOML name, e.g. ``body1.J``, ``link1.gap_plus``.
+    units : {"rad", "m"}
+        Rotational or translational drive.
+
+    Returns
+    -------
+    str
+        The unit, e.g. ``"kg·m²"``.
+    """
     field_name = name.rsplit(".", 1)[1]
     rot = units == "rad"
     table = {
@@ -188,7 +201,19 @@ def parameter_unit(name: str, units: str = "rad") -> str:
 
 
 def lower_bound(name: str) -> float:
-    """Return the physical lower bound of a parameter (J, K, k, c, gaps, friction >= 0)."""
+    """Return the physical lower bound of a parameter.
+
+    Parameters
+    ----------
+    name : str
+        TOML name, e.g. ``body1.J``.
+
+    Returns
+    -------
+    float
+        0 for J, K, viscous and kinetic/static friction means, link k and c, gaps and the
+        delay; ``-inf`` for signed asymmetries, gains and initial states.
+    """
     field_name = name.rsplit(".", 1)[1]
     if field_name in ("c_delta", "fk_delta", "fs_delta", "x0", "v0", "P", "D"):
         return -math.inf

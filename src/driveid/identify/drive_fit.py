@@ -164,6 +164,7 @@ class _Fit:
         self.problems, self.index, self.records = problems, index, records
         self.sigma = sigma  # per record: array (n_channels,)
         self.filters: list | None = None  # per record: list of noise models per channel
+        self.prior: np.ndarray | None = None  # shared z held loosely (growing horizon)
         self._cache: dict[bytes, np.ndarray] = {}
 
     def _whiten(self, r: int, c: int, values: np.ndarray) -> np.ndarray:
@@ -184,6 +185,8 @@ class _Fit:
         for r, res in enumerate(self.raw_residuals(z)):
             for c in range(res.shape[0]):
                 parts.append(self._whiten(r, c, res[c] / self.sigma[r][c]))
+        if self.prior is not None:
+            parts.append(z[:self.prior.size] - self.prior)
         return np.concatenate(parts)
 
     def jacobian(self, z: np.ndarray) -> np.ndarray:
@@ -194,6 +197,8 @@ class _Fit:
                 full = np.zeros((jac.shape[1], z.size))
                 full[:, idx] = jac[c] / self.sigma[r][c]
                 blocks.append(self._whiten(r, c, full))
+        if self.prior is not None:
+            blocks.append(np.eye(self.prior.size, z.size))
         return np.vstack(blocks)
 
 
@@ -336,7 +341,7 @@ def estimate_drive(
         # so its objective has few local minima; each stage starts the next
         pieces = [_head(rec, fraction) for rec in recs]
         st = _stage(pieces, base, start, names, free_states, x0, v0, input_body, use_u,
-                    torque, parallel, max_nfev, False, starts)
+                    torque, parallel, max_nfev, False, starts, hold=True)
         theta = st["sol"].x * st["scale_all"]
         shared = dict(zip(names, theta[:len(names)], strict=True))
         base, _, _ = with_values(base, np.zeros(nb), np.zeros(nb), shared)
@@ -413,7 +418,7 @@ def _states_of(st: dict, theta: np.ndarray, n_shared: int) -> list:
 
 
 def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, torque,
-           parallel, max_nfev, noise_model, starts=None) -> dict:
+           parallel, max_nfev, noise_model, starts=None, hold=False) -> dict:
     """One least-squares fit of shared parameters and per-record states (weighted twice)."""
     nb = start.n_bodies
     zero = np.zeros(nb)
@@ -461,6 +466,12 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
     sigma = [np.array([_channel_noise(rec.channels[c]) for c in p.channels])
              for p, rec in zip(problems, recs, strict=True)]
     fit = _Fit(problems, index, recs, sigma)
+    if hold:
+        # a prior of one start value's size on each shared parameter: a parameter the
+        # short horizon does not excite (a gap never closed yet) stays at its start
+        # instead of wandering off; an excited one is set by the data (weights 1/σ
+        # over hundreds of samples)
+        fit.prior = z0[:len(names)].copy()
     with threadpool_limits(limits=1):
         sol = _solve(fit, z0, lower, upper, max_nfev)
         # weights from the first fit's residuals: each channel by its own noise level
@@ -513,12 +524,25 @@ def _state_scale(name: str, rec: DriveRecord) -> float:
     return max(spans + [1e-3]) or 1.0
 
 
-def _solve(fit: _Fit, z0, lower, upper, max_nfev):
+def _solve(fit: _Fit, z0, lower, upper, max_nfev, restarts: int = 4):
     lo = np.where(np.isfinite(lower), lower, -np.inf)
     try:
-        return least_squares(fit.residual, z0, jac=fit.jacobian, bounds=(lo, upper),
-                             method="trf", x_scale="jac", max_nfev=max_nfev,
-                             xtol=1e-10, ftol=1e-10, gtol=1e-10)
+        sol = None
+        for _ in range(restarts):
+            # a fresh trust region: where the event pattern changes near the optimum the
+            # linear model fails for a step, the region collapses and the solver stops
+            # on xtol short of the minimum; a restart from there goes on
+            new = least_squares(fit.residual, z0 if sol is None else sol.x,
+                                jac=fit.jacobian, bounds=(lo, upper), method="trf",
+                                x_scale="jac", max_nfev=max_nfev, xtol=1e-10, ftol=1e-10,
+                                gtol=1e-10)
+            done = sol is not None and new.cost > (1.0 - 1e-6) * sol.cost
+            if sol is not None:
+                new.nfev += sol.nfev
+            sol = new
+            if done or sol.status in (1, 2):  # gtol or ftol: converged
+                break
+        return sol
     except ValueError as exc:  # non-finite residual or Jacobian
         raise IdentificationError(f"the drive fit failed ({exc}); start nearer the truth "
                                   "or estimate fewer parameters") from None
@@ -655,11 +679,13 @@ def drive_start_values(records, start: DriveParams, names: Sequence[str], *,
             continue
         d = np.concatenate(diffs)
         hi, lo = float(np.quantile(d, 0.995)), float(np.quantile(d, 0.005))
-        # the contact's own deflection adds to the extremes; keep the gap's sign rule
+        # in contact x_j - x_{j+1} sits on a plateau at the gap plus the contact's
+        # deflection under the transmitted force; the plateau's median is nearer the gap
+        # than its extreme (which holds the largest force)
         if keys[0] in wanted and hi > 0:
-            out[keys[0]] = hi
+            out[keys[0]] = float(np.median(d[d > 0.5 * hi]))
         if keys[1] in wanted and lo < 0:
-            out[keys[1]] = -lo
+            out[keys[1]] = -float(np.median(d[d < 0.5 * lo]))
     if input_body is not None:
         out.update(_inverse_model_starts(recs, start, wanted))
     return out
