@@ -57,6 +57,8 @@ def test_three_body_pd_converges_from_35_percent_off():
     # the residual reaches the measurement noise (noise + quantisation, 3e-4 rad rms)
     assert max(est.diagnostics["residual_rms"].values()) < 2 * np.hypot(
         _NOISE, _QUANTUM / np.sqrt(12))
+    # 8000 counts/rev against 2e-4 rad noise: the fit says its error bars are optimistic
+    assert any("quantised" in w for w in est.warnings)
 
 
 def test_model_toml_reruns_the_identified_drive():
@@ -100,3 +102,104 @@ def test_bad_names_and_records_are_refused():
     open_loop = preset_testbed().__class__(bodies=truth.bodies, links=truth.links)
     with pytest.raises(ParameterError, match="needs the input u"):
         estimate_drive(rec, open_loop, estimate=["body1.J"])
+
+
+def _two_body():
+    from driveid.sim import BacklashLink, BodyParams, DriveParams
+
+    return DriveParams(bodies=(BodyParams(J=0.0115, c_mean=0.002, fk_mean=0.11),
+                               BodyParams(J=0.0035, c_mean=0.0011, fk_mean=0.03)),
+                       links=(BacklashLink(gap_plus=0.02, gap_minus=0.02, k=100.0, c=0.05),))
+
+
+def _torque(t):
+    """Three sines on the motor [N·m]: above the total kinetic friction most of the time."""
+    return (0.3 * np.sin(2 * np.pi * 0.5 * t) + 0.2 * np.sin(2 * np.pi * 2.3 * t)
+            + 0.1 * np.sin(2 * np.pi * 7.1 * t))
+
+
+_OPEN_NAMES = ["body1.J", "body1.c_mean", "body1.fk_mean", "body2.J", "body2.c_mean",
+               "body2.fk_mean", "link1.gap_plus", "link1.gap_minus", "link1.k"]
+
+
+def _check(est, truth, names, tol_friction=0.10, tol=0.05):
+    for name in names:
+        true = get_value(truth, _ZERO, _ZERO, name)
+        limit = tol_friction if ("fk_" in name or "c_" in name) else tol
+        assert est.value(name) == pytest.approx(true, rel=limit), name
+
+
+def test_open_loop_two_body_backlash_from_35_percent_off():
+    truth = _two_body()
+    t = np.arange(6001) / 1000.0
+    u = _torque(t)
+    res = simulate_drive(truth, duration=6.0, torque=np.vstack([u, 0 * u]))
+    rng = np.random.default_rng(4)
+    chans = {f"x{i + 1}": np.round((res.x[i] + rng.normal(0, _NOISE, t.size)) / _QUANTUM)
+             * _QUANTUM for i in range(2)}
+    rec = DriveRecord(t=t, channels=chans, u=u)
+    est = estimate_drive(rec, _off(truth, _OPEN_NAMES, 0.35), estimate=_OPEN_NAMES)
+    # issue 25's acceptance: 5 % (inertias, gap, stiffness), 10 % friction; observed <= 1 %
+    _check(est, truth, _OPEN_NAMES)
+
+
+def test_against_an_independent_solve_ivp_drive():
+    """A drive integrated by scipy (LSODA, rtol 1e-10) with its own right-hand side:
+    tanh friction (v_s = 1e-4 rad/s) and a softplus deadzone (1e-5 rad) instead of true
+    sticking and an exact gap, so the fit cannot merely invert our own simulator."""
+    from scipy.integrate import solve_ivp
+
+    j1, c1, f1, j2, c2, f2, gap, k, c = 0.0115, 0.002, 0.11, 0.0035, 0.0011, 0.03, 0.02, \
+        100.0, 0.05
+    vs, eps = 1e-4, 1e-5
+
+    def rhs(t, y):
+        x1, x2, v1, v2 = y
+        d, dd = x1 - x2, v1 - v2
+        pen_p = eps * np.logaddexp(0, (d - gap) / eps)
+        pen_m = eps * np.logaddexp(0, (-gap - d) / eps)
+        on_p = 0.5 * (1 + np.tanh((d - gap) / (2 * eps)))
+        on_m = 0.5 * (1 + np.tanh((-gap - d) / (2 * eps)))
+        f = max(k * pen_p + c * dd * on_p, 0.0) - max(k * pen_m - c * dd * on_m, 0.0)
+        return [v1, v2, (_torque(t) - f - c1 * v1 - f1 * np.tanh(v1 / vs)) / j1,
+                (f - c2 * v2 - f2 * np.tanh(v2 / vs)) / j2]
+
+    t = np.arange(6001) / 1000.0
+    sol = solve_ivp(rhs, (0, 6.0), [0, 0, 0, 0], t_eval=t, method="LSODA", rtol=1e-10,
+                    atol=1e-12, max_step=1e-3)
+    rng = np.random.default_rng(0)
+    rec = DriveRecord(t=t, channels={f"x{i + 1}": sol.y[i] + rng.normal(0, _NOISE, t.size)
+                                     for i in range(2)}, u=_torque(t))
+    truth = _two_body()
+    est = estimate_drive(rec, _off(truth, _OPEN_NAMES, 0.35), estimate=_OPEN_NAMES)
+    # observed: within 0.4 % (inertias, gap, k) and 2.2 % (viscous); the smoothing of the
+    # reference model itself shifts the best fit, so the acceptance limits apply
+    _check(est, truth, _OPEN_NAMES)
+
+
+def test_table_5_2_sections_within_two_percent():
+    """Thesis Table 5.2 procedure on the simulated test bed: sections A, A+B, A+B+C (each a
+    lumped body under the delayed PD loop, published values) fitted in sequence."""
+    from driveid.identify.subsystems import subsystem_differences
+    from driveid.sim import BodyParams, DriveParams
+    from driveid.sim.presets import TABLE_5_2_PUBLISHED, preset_testbed_a
+
+    loop = preset_testbed_a().feedback
+    sections = []
+    for seed, (part, key) in enumerate((("A", "A"), ("B", "A+B"), ("C", "A+B+C"))):
+        pub = TABLE_5_2_PUBLISHED[key]
+        truth = DriveParams(bodies=(BodyParams(J=pub["J"], c_mean=pub["c_mean"],
+                                               fk_mean=pub["fk_mean"]),), feedback=loop)
+        res = simulate_drive(truth, duration=4.0, x0=[1.0])
+        rng = np.random.default_rng(seed)
+        rec = DriveRecord(t=res.t, channels={"x1": np.round(
+            (res.x[0] + rng.normal(0, _NOISE, res.t.size)) / _QUANTUM) * _QUANTUM})
+        names = ["body1.J", "body1.c_mean", "body1.fk_mean"]
+        est = estimate_drive(rec, _off(truth, names, 0.35), estimate=names)
+        # each section's J within 2 % (issue 25); observed well under 0.1 %
+        assert est.value("body1.J") == pytest.approx(pub["J"], rel=0.02), key
+        sections.append((part, est))
+    parts = subsystem_differences(sections)
+    true_b = TABLE_5_2_PUBLISHED["A+B"]["J"] - TABLE_5_2_PUBLISHED["A"]["J"]
+    # the part's interval comes from both sections' errors: a 5-sigma miss is a defect
+    assert abs(parts.value("B.J") - true_b) < 5 * parts.stderr("B.J") + 0.02 * true_b
