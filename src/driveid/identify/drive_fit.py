@@ -165,6 +165,7 @@ class _Fit:
         self.sigma = sigma  # per record: array (n_channels,)
         self.filters: list | None = None  # per record: list of noise models per channel
         self.prior: np.ndarray | None = None  # shared z held loosely (growing horizon)
+        self.quanta: list | None = None  # per record: (step, noise sd) or None per channel
         self._cache: dict[bytes, np.ndarray] = {}
 
     def _whiten(self, r: int, c: int, values: np.ndarray) -> np.ndarray:
@@ -172,12 +173,28 @@ class _Fit:
             return values
         return self.filters[r][c].whiten(values)
 
+    def _measured(self, r: int, c: int, y: np.ndarray, jac: np.ndarray | None = None):
+        """Return the expected encoder reading of a simulated channel (and its Jacobian)."""
+        if self.quanta is None or self.quanta[r][c] is None:
+            return y, jac
+        q, sd = self.quanta[r][c]
+        k = np.arange(1, 6)[:, None]
+        damp = (-1.0) ** k * np.exp(-2.0 * (np.pi * k * sd / q) ** 2)
+        phase = 2.0 * np.pi * k * y[None, :] / q
+        mean = y + np.sum(q / (np.pi * k) * damp * np.sin(phase), axis=0)
+        if jac is None:
+            return mean, None
+        slope = 1.0 + np.sum(2.0 * damp * np.cos(phase), axis=0)
+        return mean, jac * slope[:, None]
+
     def raw_residuals(self, z: np.ndarray) -> list[np.ndarray]:
         """Model minus data per record, shape (n_channels, n), unweighted."""
         out = []
-        for prob, idx, rec in zip(self.problems, self.index, self.records, strict=True):
+        for r, (prob, idx, rec) in enumerate(zip(self.problems, self.index, self.records,
+                                                 strict=True)):
             y = prob.outputs([z[idx]])[0]
-            out.append(y - np.array([rec.channels[c] for c in prob.channels]))
+            model = np.array([self._measured(r, c, y[c])[0] for c in range(y.shape[0])])
+            out.append(model - np.array([rec.channels[c] for c in prob.channels]))
         return out
 
     def residual(self, z: np.ndarray) -> np.ndarray:
@@ -192,10 +209,10 @@ class _Fit:
     def jacobian(self, z: np.ndarray) -> np.ndarray:
         blocks = []
         for r, (prob, idx) in enumerate(zip(self.problems, self.index, strict=True)):
-            _, jac = prob.value_and_jacobian(z[idx])
+            y, jac = prob.value_and_jacobian(z[idx])
             for c in range(jac.shape[0]):
                 full = np.zeros((jac.shape[1], z.size))
-                full[:, idx] = jac[c] / self.sigma[r][c]
+                full[:, idx] = self._measured(r, c, y[c], jac[c])[1] / self.sigma[r][c]
                 blocks.append(self._whiten(r, c, full))
         if self.prior is not None:
             blocks.append(np.eye(self.prior.size, z.size))
@@ -494,6 +511,7 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
         # weights from the first fit's residuals: each channel by its own noise level
         raw = fit.raw_residuals(sol.x)
         fit.sigma = _pooled_sigma(problems, raw)
+        fit.quanta = _quanta(recs, problems, fit.sigma)
         sol = _solve(fit, sol.x, lower, upper, max_nfev)
         noise_info = None
         fitter = _noise_fitter() if noise_model else None
@@ -509,6 +527,32 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
     return {"sol": sol, "fit": fit, "problems": problems, "index": index,
             "all_names": all_names, "scale_all": scale_all, "states0": states0,
             "lower": lower, "upper": upper, "noise_info": noise_info}
+
+
+def _quanta(recs, problems, sigma) -> list | None:
+    """Return the encoder step and noise sd of each quantised position channel (or None).
+
+    The fit then compares the data with the *expected* reading of a rounding encoder
+    under Gaussian noise of sd σ (Widrow's series), ``E Q(x + n) = x + Σ_k q/(πk) (-1)^k
+    exp(-2π²k²σ²/q²) sin(2πk x/q)``: where the noise does not dither the encoder (σ < q/2)
+    the plain model is biased by up to ``q/π·exp(-2π²σ²/q²)`` at every sample, the same
+    sign at the same position, which no noise model averages out. ``σ² = rms² - q²/12``.
+    """
+    from driveid.identify.output_error import detect_quantum
+
+    out, found = [], False
+    for rec, prob, sd_c in zip(recs, problems, sigma, strict=True):
+        row = []
+        for c, ch in enumerate(prob.channels):
+            q = detect_quantum(rec.channels[ch]) if ch.startswith("x") else None
+            if q is None:
+                row.append(None)
+                continue
+            noise = math.sqrt(max(sd_c[c] ** 2 - q * q / 12.0, (0.05 * q) ** 2))
+            row.append((q, noise))
+            found = True
+        out.append(row)
+    return out if found else None
 
 
 def _quantised(recs, fit: _Fit, z: np.ndarray) -> bool:
