@@ -203,3 +203,21 @@ def test_table_5_2_sections_within_two_percent():
     true_b = TABLE_5_2_PUBLISHED["A+B"]["J"] - TABLE_5_2_PUBLISHED["A"]["J"]
     # the part's interval comes from both sections' errors: a 5-sigma miss is a defect
     assert abs(parts.value("B.J") - true_b) < 5 * parts.stderr("B.J") + 0.02 * true_b
+
+
+def test_drive_crlb_matches_the_closed_form_of_a_free_inertia():
+    """J x'' = u from rest: x = g(t)/J, so ∂x/∂J = -x/J and the bound is σ J / sqrt(Σ x²)."""
+    from driveid.identify.crlb import drive_crlb
+    from driveid.sim import BodyParams, DriveParams
+
+    drive = DriveParams(bodies=(BodyParams(J=0.02),))
+    t = np.arange(2001) / 1000.0
+    u = 0.1 * np.sin(2 * np.pi * 1.3 * t)
+    x = simulate_drive(drive, duration=2.0, torque=u[None, :]).x[0]
+    rec = DriveRecord(t=t, channels={"x1": x}, u=u)
+    sd = drive_crlb(drive, rec, ["body1.J"], noise_std=1e-4, x0=[0.0], v0=[0.0])
+    exact = 1e-4 * 0.02 / np.sqrt(np.sum(x**2))
+    # central differences of a function exactly linear in 1/J: error ~ step² = 1e-6
+    assert sd["body1.J"] == pytest.approx(exact, rel=1e-4)
+    with pytest.raises(ParameterError, match="noise_std must be positive"):
+        drive_crlb(drive, rec, ["body1.J"], noise_std=0.0)
