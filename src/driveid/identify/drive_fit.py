@@ -308,7 +308,7 @@ def estimate_drive(
     >>> res = simulate_drive(truth, duration=2.0, torque=u)
     >>> rec = DriveRecord.from_result(res, ["x1"], input_body=None)
     >>> rec = DriveRecord(t=rec.t, channels=rec.channels, u=u[0])
-    >>> off = DriveParams(bodies=(BodyParams(J=0.013, c_mean=0.0015, fk_mean=0.065),))
+    >>> off = DriveParams(bodies=(BodyParams(J=0.013, c_mean=0.002, fk_mean=0.065),))
     >>> est = estimate_drive(rec, off, estimate=["body1.J", "body1.fk_mean"], x0=[0.0],
     ...                      v0=[0.0], starts_from_record=False)
     >>> round(est.value("body1.J"), 5), round(est.value("body1.fk_mean"), 4)
