@@ -31,6 +31,27 @@ set of measure zero and the Gauss–Newton covariance is that of the smooth bran
 ``2p + 1`` simulations of a Jacobian run in one :func:`~driveid.sim.batch.
 simulate_drive_batch` call, in threads (a 10 s, 1 kHz two-body drive: milliseconds each).
 
+Local minima: growing horizon
+-----------------------------
+A whole-record output-error objective of a drive has local minima: the kinetic friction
+trades against the backlash gap, and a free-floating open-loop drive integrates every
+parameter error into its position. The fit first fits the first ``segment`` seconds of
+each record (0.5 s), then twice as much, and so on, then the whole records, each stage
+starting the next; in the short stages a loose prior (one start value wide, in the scaled
+parameters) holds what the horizon does not yet excite, e.g. a gap not yet closed. Each
+least-squares pass restarts its trust region (up to four times) where it stopped on the
+step tolerance short of a stationary point. Multiple shooting (segments with their own
+initial states) was tried and converged worse: a segment's start velocity is poorly known
+where the load flies inside the gap.
+
+Encoder quantisation
+--------------------
+Where noise of sd σ does not dither a rounding encoder of step q (σ < q/2), the mean
+reading is biased by up to ``q/π·exp(-2π²σ²/q²)`` with the same sign at the same position;
+the fit then compares each quantised position channel with the expected reading
+``E Q(x + n) = x + Σ_k q/(πk) (-1)^k exp(-2π²k²σ²/q²) sin(2πk x/q)`` (Widrow's series,
+``σ² = rms² - q²/12``) and takes a Newey–West sandwich covariance.
+
 Bounds and error bars
 ---------------------
 Physical bounds: ``J >= 0``, ``K >= 0``, ``c_mean >= 0``, ``fk_mean >= 0``, ``fs_mean >= 0``,
@@ -47,6 +68,8 @@ References
        §3.2.2, ch. 6.
 .. [2] L. Ljung, *System Identification: Theory for the User*, 2nd ed., Prentice Hall,
        1999, §7.3 (prediction-error methods).
+.. [3] B. Widrow, I. Kollár, *Quantization Noise*, Cambridge University Press, 2008,
+       ch. 4-5 (moments of a quantised Gaussian), doi:10.1017/CBO9780511754661.
 """
 
 from __future__ import annotations
@@ -72,8 +95,9 @@ from driveid.identify._drive_model import (
     parameter_unit,
     with_values,
 )
+from driveid.identify._drive_starts import drive_start_values
 from driveid.identify.estimate import Estimate, Parameter
-from driveid.sim.drive_types import BacklashLink, DriveParams
+from driveid.sim.drive_types import DriveParams
 
 __all__ = ["DriveRecord", "estimate_drive", "drive_start_values"]
 
@@ -718,120 +742,3 @@ def _result(start, base, names, all_names, theta, cov, recs, problems, index, fi
         data_used={"estimated": est_names, "channels": diagnostics["channels"]},
         diagnostics=diagnostics, warnings=tuple(dict.fromkeys(warnings)),
         covariance={"names": est_names, "matrix": cov})
-
-
-def drive_start_values(records, start: DriveParams, names: Sequence[str], *,
-                       input_body: int | None = 0) -> dict[str, float]:
-    """Start values of a drive fit read from the record.
-
-    Parameters
-    ----------
-    records : DriveRecord or sequence of DriveRecord
-        The measured runs.
-    start : DriveParams
-        The drive's structure and the user's start values.
-    names : sequence of str
-        The parameters to be estimated; only their start values are returned.
-    input_body : int or None
-        0-based body the record's ``u`` drives (None: closed loop, ``u`` not an input; the
-        inverse-model part is then skipped).
-
-    Returns
-    -------
-    dict of str to float
-        Start values for some of ``names``: backlash gaps ``linkJ.gap_plus``,
-        ``gap_minus`` [rad or m] from the extremes of the measured ``x_j - x_{j+1}``
-        (the deadzone's edges are where the difference turns at reversals); inertias
-        ``bodyI.J`` and viscous and kinetic friction ``c_mean``, ``fk_mean`` from the sum of
-        all bodies' equations of motion, in which every link force cancels:
-        ``u = Σ_i (J_i a_i + c_i v_i + fk_i sgn v_i)`` (thesis 2.136, 2.155), regressed over
-        the samples where the measured bodies move (unmeasured bodies follow the nearest
-        measured one; velocities and accelerations by Savitzky–Golay differentiation).
-
-    Examples
-    --------
-    >>> from driveid.sim import BodyParams, DriveParams
-    >>> drive_start_values([], DriveParams(bodies=(BodyParams(J=1.0),)), ["body1.J"])
-    {}
-    """
-    recs = [records] if isinstance(records, DriveRecord) else list(records)
-    out: dict[str, float] = {}
-    wanted = set(names)
-    for j, ln in enumerate(start.links):
-        if not isinstance(ln, BacklashLink):
-            continue
-        keys = (f"link{j + 1}.gap_plus", f"link{j + 1}.gap_minus")
-        if not wanted & set(keys):
-            continue
-        diffs = [r.channels[f"x{j + 1}"] - r.channels[f"x{j + 2}"] for r in recs
-                 if f"x{j + 1}" in r.channels and f"x{j + 2}" in r.channels]
-        if not diffs:
-            continue
-        d = np.concatenate(diffs)
-        hi, lo = float(np.quantile(d, 0.995)), float(np.quantile(d, 0.005))
-        # in contact x_j - x_{j+1} sits on a plateau at the gap plus the contact's
-        # deflection under the transmitted force; the plateau's median is nearer the gap
-        # than its extreme (which holds the largest force)
-        if keys[0] in wanted and hi > 0:
-            out[keys[0]] = float(np.median(d[d > 0.5 * hi]))
-        if keys[1] in wanted and lo < 0:
-            out[keys[1]] = -float(np.median(d[d < 0.5 * lo]))
-    if input_body is not None:
-        out.update(_inverse_model_starts(recs, start, wanted))
-    return out
-
-
-def _inverse_model_starts(recs, start: DriveParams, wanted: set) -> dict[str, float]:
-    from scipy.signal import savgol_filter
-
-    nb = start.n_bodies
-    movable = [i for i, b in enumerate(start.bodies) if not b.locked]
-    rows, rhs = [], []
-    cols: list[str] = []
-    for i in movable:
-        cols += [f"body{i + 1}.J", f"body{i + 1}.c_mean", f"body{i + 1}.fk_mean"]
-    for rec in recs:
-        if rec.u is None:
-            continue
-        measured = [channel_index(c)[1] for c in rec.channels if c[0] == "x"]
-        if not measured:
-            continue
-        dt = 1.0 / rec.fs
-        window = max(7, int(0.02 * rec.fs) | 1)
-        if window >= rec.t.size:
-            continue
-        va = {}
-        for i in measured:
-            y = rec.channels[f"x{i + 1}"]
-            va[i] = (savgol_filter(y, window, 3, deriv=1, delta=dt),
-                     savgol_filter(y, window, 3, deriv=2, delta=dt))
-        m = np.asarray(measured)
-        block = np.zeros((rec.t.size, len(cols)))
-        moving = np.ones(rec.t.size, bool)
-        for k, i in enumerate(movable):
-            v, a = va[int(m[np.argmin(np.abs(m - i))])]
-            block[:, 3 * k] = a
-            block[:, 3 * k + 1] = v
-            block[:, 3 * k + 2] = np.sign(v)
-            moving &= np.abs(v) > 0.05 * np.max(np.abs(v))
-        sl = slice(window, rec.t.size - window)
-        keep = moving[sl]
-        rows.append(block[sl][keep])
-        rhs.append(rec.u[sl][keep] - sum(start.bodies[i].fk_delta for i in movable))
-    if not rows or sum(r.shape[0] for r in rows) < 10 * len(cols):
-        return {}
-    a = np.vstack(rows)
-    b = np.concatenate(rhs)
-    prior = np.array([get_value(start, np.zeros(nb), np.zeros(nb), c) for c in cols])
-    # ridge toward the user's start: bodies that move together are not separable here
-    norm = np.linalg.norm(a, axis=0) + 1e-300
-    lam = 1e-3 * float(np.max(norm)) ** 2
-    weight = np.maximum(np.abs(prior), 1e-12)
-    an = a * weight
-    sol = np.linalg.solve(an.T @ an + lam * np.eye(len(cols)),
-                          an.T @ b + lam * prior / weight) * weight
-    out = {}
-    for name, value, p in zip(cols, sol, prior, strict=True):
-        if name in wanted and value > 0 and (p == 0 or 0.2 < value / p < 5.0):
-            out[name] = float(value)
-    return out
