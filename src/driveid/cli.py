@@ -369,6 +369,10 @@ _IDENTIFY = {
     "envelope": (_C + "forced:envelope_command", "Viscous vs Coulomb envelope damping."),
     "transfer": (_C + "transfer:transfer_command",
                  "Linear drive model: command to speed or position (TF, two-mass)."),
+    "drive": (_C + "identify_drive:drive_command",
+              "Fit the lumped drive of CONFIG (TOML) to motor and load records."),
+    "subsystems": (_C + "identify_drive:subsystems_command",
+                   "Fit sections A, A+B, A+B+C; each part as their difference."),
 }
 
 

@@ -27,7 +27,7 @@ from driveid.errors import IdentificationError, ParameterError
 from driveid.identify._free_response import GLOBAL_NAMES, kinetic_stop_count, response
 from driveid.identify.output_error import _physical_jacobian, physical_parameters
 
-__all__ = ["free_decay_crlb", "required_duration"]
+__all__ = ["drive_crlb", "free_decay_crlb", "required_duration"]
 
 _PHYSICAL = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta")
 
@@ -243,3 +243,84 @@ def required_duration(
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if bound(mid) <= target else (mid, hi)
     return float(hi)
+
+
+def drive_crlb(
+    params: Any,
+    record: Any,
+    names: Sequence[str],
+    *,
+    noise_std: Mapping[str, float] | float,
+    x0=None,
+    v0=None,
+    input_body: int | None = None,
+) -> dict[str, float]:
+    r"""Cramér–Rao standard deviations of a whole-drive fit for one record design.
+
+    Parameters
+    ----------
+    params : DriveParams
+        The true drive (structure and values).
+    record : DriveRecord
+        The design: sample times [s], input ``u`` [N·m or N] (open loop) and the measured
+        channel names (``x1``, ``v2`` …; their values are not used).
+    names : sequence of str
+        Estimated parameters, named as in the TOML (``body1.J``, ``link1.k`` …); the
+        initial state counts only where listed (``body1.x0``).
+    noise_std : float or mapping of str to float
+        Standard deviation of white noise on every channel, or per channel [rad, rad/s or
+        m, m/s].
+    x0, v0 : array_like, shape (n_bodies,), optional
+        True initial positions [rad or m] and velocities [rad/s or m/s] (default 0).
+    input_body : int, optional
+        0-based body ``u`` acts on (default: the feedback body, else 0; unused under
+        feedback).
+
+    Returns
+    -------
+    dict of str to float
+        Bound standard deviation of each parameter, ``sqrt(diag((JᵀWJ)⁻¹))`` with ``J`` the
+        central-difference Jacobian of the simulated channels at the truth
+        (:mod:`driveid.identify._drive_model`) and ``W = diag(1/σ_c²)``.
+
+    Raises
+    ------
+    ParameterError
+        A bad name or a non-positive noise level.
+
+    Examples
+    --------
+    >>> from driveid.sim import BodyParams, DriveParams
+    >>> from driveid.identify.drive_fit import DriveRecord
+    >>> drive = DriveParams(bodies=(BodyParams(J=0.01, c_mean=0.002, fk_mean=0.05),))
+    >>> t = np.arange(2001) / 1000.0
+    >>> rec = DriveRecord(t=t, channels={"x1": 0 * t}, u=0.2 * np.sin(9.4 * t))
+    >>> sd = drive_crlb(drive, rec, ["body1.J"], noise_std=1e-4, x0=[0.0], v0=[0.0])
+    >>> 0 < sd["body1.J"] / 0.01 < 1e-2
+    True
+    """
+    from driveid.identify._drive_model import DriveProblem, check_names, get_value
+
+    names = check_names(params, list(names))
+    nb = params.n_bodies
+    x0 = np.zeros(nb) if x0 is None else np.broadcast_to(np.asarray(x0, float), (nb,))
+    v0 = np.zeros(nb) if v0 is None else np.broadcast_to(np.asarray(v0, float), (nb,))
+    values = np.array([get_value(params, x0, v0, n) for n in names])
+    scale = np.where(values != 0, np.abs(values), 1.0)
+    if input_body is None:
+        input_body = params.feedback.body if params.feedback is not None else 0
+    problem = DriveProblem(params, x0, v0, names, scale, record,
+                           None if params.feedback is not None else input_body)
+    _, jac = problem.value_and_jacobian(values / scale)
+    rows = []
+    for c, channel in enumerate(problem.channels):
+        sd = noise_std if not isinstance(noise_std, Mapping) else noise_std.get(channel)
+        if sd is None or not (math.isfinite(sd) and sd > 0):
+            raise ParameterError(f"noise_std must be positive for channel {channel}; got "
+                                 f"{sd!r}")
+        rows.append(jac[c] / sd)
+    jw = np.vstack(rows)
+    _, s, vt = np.linalg.svd(jw, full_matrices=False)
+    cov = (vt.T / np.maximum(s, 1e-300) ** 2) @ vt
+    sd = np.sqrt(np.diag(cov)) * scale
+    return dict(zip(names, (float(v) for v in sd), strict=True))

@@ -1,0 +1,170 @@
+"""``driveid identify drive`` and ``driveid identify subsystems``: the whole lumped drive."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import click
+
+from driveid.commands import clean_errors
+from driveid.commands._output import emit, output_options
+from driveid.commands._record_options import record_options, split_window_spec
+
+__all__ = ["drive_command", "subsystems_command", "read_drive_records"]
+
+_CHANNEL = re.compile(r"^[xv][1-9][0-9]*$")
+
+
+def _pairs(values, option: str) -> dict[str, str]:
+    out = {}
+    for item in values:
+        key, sep, column = item.partition("=")
+        if not sep or not _CHANNEL.match(key.strip()) or not column.strip():
+            raise click.UsageError(f"{option} takes CHANNEL=COLUMN with CHANNEL like x1, v2; "
+                                   f"got {item!r}")
+        out[key.strip()] = column.strip()
+    return out
+
+
+def read_drive_records(files, record_opts, *, channels: dict[str, str] | None = None,
+                       input_column: str | None = None, n_bodies: int):
+    """Read drive records (channels ``x1``, ``v1`` ... and the input) with the reading options.
+
+    Parameters
+    ----------
+    files : sequence of str
+        ``PATH`` or ``PATH@T0:T1`` each.
+    record_opts : RecordOptions
+        The shared reading options (window, scale, units, jitter, encoder counts).
+    channels : dict of str to str, optional
+        Channel (``x2``) -> file column, for columns not named as ``simulate drive`` writes.
+    input_column : str, optional
+        File column of the input torque or force (default ``command`` or ``u`` if present).
+    n_bodies : int
+        Bodies of the drive (channels of other bodies are ignored).
+
+    Returns
+    -------
+    list of DriveRecord
+        One per file.
+
+    Raises
+    ------
+    FileFormatError
+        If a file has no channel of the drive.
+    """
+    from driveid.errors import FileFormatError
+    from driveid.identify._drive_model import DriveRecord
+    from driveid.io import read_record
+    from driveid.io.tables import read_table
+
+    channels = dict(channels or {})
+    out = []
+    for spec in files:
+        path, window = split_window_spec(spec)
+        table = read_table(path)
+        names = set(table.columns)
+        mapping = {}
+        for i in range(1, n_bodies + 1):
+            for kind in ("x", "v"):
+                ch = f"{kind}{i}"
+                column = channels.get(ch, ch if ch in names else None)
+                if column is not None:
+                    mapping[ch] = column
+        ucol = input_column or next((c for c in ("command", "u") if c in names), None)
+        bodies = sorted({int(ch[1:]) for ch in mapping})
+        if not any(ch.startswith("x") for ch in mapping):
+            raise FileFormatError(f"{path.name}: no position channel of the drive (x1 ... "
+                                  f"x{n_bodies}); name one with --channel x1=COLUMN; got "
+                                  f"columns {sorted(names)}")
+        kwargs = record_opts.read_kwargs(None if window == (None, None) else window)
+        chans, t, u, meta = {}, None, None, {}
+        for i in bodies:
+            cols = {}
+            if record_opts.columns.get("t") is not None:
+                cols["t"] = record_opts.columns["t"]
+            x_col = mapping.get(f"x{i}")
+            if x_col is None:
+                continue  # a velocity alone is read with its body's position only
+            cols["x"] = x_col
+            if f"v{i}" in mapping:
+                cols["v"] = mapping[f"v{i}"]
+            if ucol is not None:
+                cols["u"] = ucol
+            rec = read_record(path, **{**kwargs, "columns": cols})
+            t, meta = rec.t, dict(rec.meta)
+            chans[f"x{i}"] = rec.x
+            if rec.v is not None and "v" in cols:
+                chans[f"v{i}"] = rec.v
+            if rec.u is not None and ucol is not None:
+                u = rec.u
+        out.append(DriveRecord(t=t, channels=chans, u=u, meta=meta))
+    return out
+
+
+@click.command("drive")
+@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]...")
+@click.option("--estimate", "estimate", required=True,
+              help="Parameters to estimate, comma-separated, named as in the TOML "
+                   "(bodies and links from 1): body1.J,body1.fk_mean,link1.gap_plus,...")
+@click.option("--channel", "channel", multiple=True, metavar="CHANNEL=COLUMN",
+              help="Read channel x1, v2 ... from another column (repeatable).")
+@click.option("--input", "input_column", default=None,
+              help="Column of the input torque/force u (default: command or u).")
+@click.option("--input-body", type=int, default=None,
+              help="Body (from 1) the input acts on (default: [feedback] body, else 1).")
+@click.option("--segment", type=float, default=0.5, show_default=True,
+              help="Open loop: first fit segments of this length [s] (0: whole records).")
+@click.option("--white", is_flag=True, help="White noise only (no AR noise model).")
+@click.option("--model-out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Write the identified drive as TOML (simulate drive re-runs it).")
+@record_options
+@output_options
+@clean_errors
+def drive_command(config, files, estimate, channel, input_column, input_body, segment, white,
+                  model_out, record_opts, output_opts):
+    """Fit the lumped drive of CONFIG (TOML) to motor and load records."""
+    from driveid.identify.drive_fit import estimate_drive
+    from driveid.io.safe_write import atomic_write_text
+    from driveid.sim.config import load_drive_config
+
+    params, run = load_drive_config(config)
+    names = [n.strip() for n in estimate.split(",") if n.strip()]
+    if input_body is not None and input_body < 1:
+        raise click.UsageError(f"--input-body counts bodies from 1; got {input_body}")
+    if model_out is not None:
+        from driveid.io import ensure_writable
+
+        ensure_writable(model_out, overwrite=output_opts.overwrite)
+    records = read_drive_records(files, record_opts, channels=_pairs(channel, "--channel"),
+                                 input_column=input_column, n_bodies=params.n_bodies)
+    est = estimate_drive(records, params, estimate=names, x0=run.x0, v0=run.v0,
+                         input_body=None if input_body is None else input_body - 1,
+                         torque=run.torque, units=run.units, noise_model=not white,
+                         segment=segment or None)
+    if model_out is not None:
+        atomic_write_text(model_out, est.diagnostics["model_toml"],
+                          overwrite=output_opts.overwrite)
+    emit(est, output_opts,
+         header=f"method: {est.method}   samples: {est.diagnostics['n_samples']}   "
+                f"simulations: {est.diagnostics['n_simulations']}")
+    if model_out is not None and not output_opts.as_json:
+        click.echo(f"wrote {model_out}")
+
+
+@click.command("subsystems")
+@click.argument("manifest", type=click.Path(dir_okay=False, path_type=Path))
+@output_options
+@clean_errors
+def subsystems_command(manifest, output_opts):
+    """Fit sections A, A+B, A+B+C; each part as their difference."""
+    from driveid.identify.subsystems import estimate_subsystems
+
+    result = estimate_subsystems(manifest)
+    emit(result, output_opts, header="sections fitted in sequence; parts as differences "
+                                     "(thesis §4.1, Table 5.2)")
+    if not output_opts.as_json:
+        click.echo("")
+        click.echo(result.diagnostics["table"])
