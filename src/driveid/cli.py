@@ -344,6 +344,8 @@ _TOP = {
 _SIMULATE = {
     "free-decay": (_C + "logdec:free_decay_command", "Exact free decay with friction."),
     "drive": (_C + "drive:drive_command", "Lumped multi-body drive from TOML or a preset."),
+    "contour": (_C + "contour:simulate_contour_command",
+                "Circular contour test (ball bar) of two feed axes under PID control."),
 }
 _IDENTIFY = {
     "logdec": (_C + "logdec:logdec_command",
@@ -363,6 +365,8 @@ _IDENTIFY = {
     "step": (_C + "static:step_command", "Step response: frequency and damping."),
     "forced": (_C + "forced:forced_command", "Forced response: J, C, K from sine runs."),
     "envelope": (_C + "forced:envelope_command", "Viscous vs Coulomb envelope damping."),
+    "contour": (_C + "contour:identify_contour_command",
+                "Circle test: each axis's Coulomb and viscous friction and backlash gap."),
 }
 
 

@@ -59,13 +59,13 @@ from typing import Any
 import numpy as np
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.estimate import Estimate, Parameter
+from driveid.identify.estimate import Estimate, Parameter, inputs_of
 from driveid.sim.contour import AxisCompensation, contour_metrics, simulate_contour
 from driveid.sim.contour_config import ContourConfig
 from driveid.sim.drive_types import BacklashLink, BodyParams, ShaftLink
 
 __all__ = ["ContourRecord", "compensation_from_estimate", "estimate_contour",
-           "read_contour_record"]
+           "identified_config", "read_contour_record"]
 
 _FRICTION = {"M": ("J", "kg"), "Fv": ("c_mean", "N·s/m"), "Fc": ("fk_mean", "N"),
              "offset": ("fk_delta", "N")}
@@ -172,9 +172,9 @@ def read_contour_record(path: str | Path, axes: Sequence[str] = ("x", "y"),
                               f"{axes[0]}, ... (or t, dr for a ball-bar record); reading "
                               f"{Path(path).name} failed: {exc}") from None
         return ContourRecord(t=ball.t, reference={}, position={}, radial=ball.x,
-                             meta={"source": str(path), "inputs": [dict(ball.meta)]})
+                             meta={"source": str(path), "inputs": inputs_of([ball])})
     columns["t"] = first.t
-    inputs = [dict(first.meta)]
+    inputs = inputs_of([first])
     for a in axes:
         ref = channel(f"{a}_ref")
         columns[f"{a}_ref"] = ref.x
@@ -188,7 +188,6 @@ def read_contour_record(path: str | Path, axes: Sequence[str] = ("x", "y"),
             columns[a] = rec.x
             if rec.u is not None:
                 columns[f"u_{a}"] = rec.u
-            inputs.append(dict(rec.meta))
             break
         try:
             columns[f"{a}_motor"] = channel(f"{a}_motor").x
@@ -435,7 +434,7 @@ def compensation_from_estimate(estimate: Estimate | Mapping[str, Any], *,
                              f"{estimate.method!r} with {sorted(estimate.params)}")
     out = {}
     for a in axes:
-        def val(name: str) -> float:
+        def val(name: str, a: str = a) -> float:
             key = f"{a}.{name}"
             value = estimate.value(key) if key in estimate else 0.0
             return value if math.isfinite(value) else 0.0
@@ -446,10 +445,22 @@ def compensation_from_estimate(estimate: Estimate | Mapping[str, Any], *,
 
 
 def identified_config(estimate: Estimate, config: ContourConfig) -> ContourConfig:
-    """The config with each plane axis's friction and gap replaced by the estimate's.
+    """Return the config with each plane axis's friction and gap taken from the estimate.
 
     The identified friction is put on the table (the last body), the other bodies keep their
     mass and lose their friction; the first backlash link takes the gap split evenly.
+
+    Parameters
+    ----------
+    estimate : Estimate
+        An :func:`estimate_contour` result.
+    config : ContourConfig
+        The configuration the record came from.
+
+    Returns
+    -------
+    ContourConfig
+        The identified model of the axes.
     """
     axes = dict(config.axes)
     for a in config.path.axes:
@@ -485,7 +496,10 @@ def _simulate_identified(estimate: Estimate, record, config, validate: bool,
     data_used = dict(estimate.data_used)
     data_used["radial_measured"] = measured["radial"]
     data_used["angle"] = measured["angle"]
-    diagnostics["measured"] = {"rms": measured["rms"], "peak": measured["peak"]}
+    data_used["steady"] = measured["steady"]
+    diagnostics["measured"] = {"rms": measured["rms"], "peak": measured["peak"],
+                               "glitches": measured["glitches"],
+                               "reversal_spikes": measured["reversals"]}
     if validate:
         sim = simulate_contour(model)
         n = min(sim.t.size, t.size)
