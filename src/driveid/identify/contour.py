@@ -223,11 +223,15 @@ def _direction_mean(d: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
 
 
 def _axis_friction(rec, name: str, config: ContourConfig, speed: float, cutoff_hz: float,
-                   decimate: int) -> tuple[Estimate, dict]:
+                   decimate: int, held: bool) -> tuple[Estimate, dict]:
     from driveid.identify.idim import estimate_idim
     from driveid.io.record import Record
 
-    t, x, u = rec.t, rec.position[name], rec.command[name]
+    t, x, u = rec.t, rec.position[name], np.asarray(rec.command[name], float)
+    if held:
+        # a command held over [t_k, t_k+1) (zero-order hold) acts on the motion of the
+        # middle of its period: regress it on the position at t_k + T/2
+        t, x, u = 0.5 * (t[1:] + t[:-1]), 0.5 * (x[1:] + x[:-1]), u[:-1]
     record = Record(t=t, x=x, u=u, meta={"units": {"x": "m", "u": "N"},
                                          "source": f"contour axis {name}"}, max_jitter=None)
     est = estimate_idim(record, model="symmetric", cutoff_hz=cutoff_hz, decimate=decimate,
@@ -323,7 +327,7 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
                                   f"{col}); the friction regression needs it")
     t = np.asarray(record.t, float)
     fs = 1.0 / float(np.median(np.diff(t)))
-    cutoff = min(100.0, fs / 10.0) if cutoff_hz is None else float(cutoff_hz)
+    cutoff = min(50.0, fs / 20.0) if cutoff_hz is None else float(cutoff_hz)
     speed = min_speed_fraction * path.feed
     params: dict[str, Parameter] = {}
     diagnostics: dict[str, Any] = {"plane": path.plane, "radius": path.radius,
@@ -335,7 +339,9 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
     from driveid.validate import whiteness
 
     for a in plane:
-        est, res = _axis_friction(record, a, config, speed, cutoff, decimate)
+        rate = config.axes[a].controller.rate
+        held = abs(rate - fs) < 1e-6 * fs  # one recorded command per control period
+        est, res = _axis_friction(record, a, config, speed, cutoff, decimate, held)
         # the residual is correlated (contact dynamics, the held command): inflate the
         # least-squares covariance by the AR(1) variance factor of its lag-1 correlation
         rho = min(max(float(est.diagnostics.get("residual_lag1", 0.0)), 0.0), 0.95)
