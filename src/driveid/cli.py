@@ -366,7 +366,7 @@ _IDENTIFY = {
     "forced": (_C + "forced:forced_command", "Forced response: J, C, K from sine runs."),
     "envelope": (_C + "forced:envelope_command", "Viscous vs Coulomb envelope damping."),
     "contour": (_C + "contour:identify_contour_command",
-                "Circle test: each axis's Coulomb and viscous friction and backlash gap."),
+                "Circle test: each axis's Coulomb, viscous friction and backlash gap."),
 }
 
 

@@ -153,7 +153,7 @@ def simulate_contour_command(config, out, compensate, seed, as_json, overwrite):
 @output_options
 @clean_errors
 def identify_contour_command(file, config, min_speed, no_preview, record_opts, output_opts):
-    """Circle test: each axis's Coulomb and viscous friction and backlash gap."""
+    """Circle test: each axis's Coulomb, viscous friction and backlash gap."""
     from driveid.commands._record_options import split_window_spec
     from driveid.identify.contour import estimate_contour, read_contour_record
     from driveid.sim.contour_config import load_contour_config
