@@ -14,32 +14,27 @@ import math
 
 import numpy as np
 import pytest
-from scipy.linalg import expm
 
 from driveid.errors import ConfigError, ParameterError
-from driveid.sim.contour import AxisCompensation, circle_reference, simulate_contour
-from driveid.sim.contour_config import CirclePath, load_contour_config, parse_contour_config
+from driveid.sim.contour import (
+    AxisCompensation,
+    circle_reference,
+    closed_loop_gain,
+    simulate_contour,
+)
+from driveid.sim.contour_config import (
+    CirclePath,
+    ControllerParams,
+    load_contour_config,
+    parse_contour_config,
+)
 
 EXAMPLE = "examples/drive_configs/contour_xy.toml"
 
 
 def closed_loop_discrete(J, c, kp, kd, ki, kv, ka, rate, omega):
-    """G(e^{jωT}) of the ZOH plant 1/(J s² + c s) under u_k of ControllerParams."""
-    T = 1.0 / rate
-    A = np.array([[0.0, 1.0], [0.0, -c / J]])
-    B = np.array([[0.0], [1.0 / J]])
-    aug = np.zeros((3, 3))
-    aug[:2, :2], aug[:2, 2:] = A * T, B * T
-    E = expm(aug)
-    Ad, Bd = E[:2, :2], E[:2, 2]
-    M = np.zeros((3, 3))
-    M[:2, :2] = Ad - np.outer(Bd, [kp + ki * T, kd])
-    M[:2, 2] = Bd * ki
-    M[2] = [-T, 0.0, 1.0]
-    g = (kp + ki * T) + (kd + kv) * 1j * omega - ka * omega**2
-    N = np.concatenate([Bd * g, [T]])
-    Z = np.linalg.solve(np.exp(1j * omega * T) * np.eye(3) - M, N)
-    return Z[0]
+    return closed_loop_gain(J, c, ControllerParams(kp=kp, kd=kd, ki=ki, kv=kv, ka=ka,
+                                                   rate=rate), omega)
 
 
 def closed_loop_continuous(J, c, kp, kd, ki, kv, ka, omega):
@@ -84,6 +79,17 @@ def test_linear_axes_radius_is_closed_loop_gain(feed, radius):
     Gc = closed_loop_continuous(g["J"], g["c"], g["kp"], g["kd"], g["ki"], g["kv"], g["ka"],
                                 omega)
     assert abs(np.mean(dr) - radius * (abs(Gc) - 1.0)) < 3 * omega / 2000.0 * radius
+
+
+def test_sampled_gain_tends_to_the_continuous_transfer_function():
+    # independent of the code under test: the test's own continuous closed form, and the
+    # sampled loop's deviation from it shrinks like the hold's delay, O(ωT)
+    g = LINEAR
+    Gc = closed_loop_continuous(g["J"], g["c"], g["kp"], g["kd"], g["ki"], 0.0, 0.0, 30.0)
+    errors = [abs(closed_loop_discrete(g["J"], g["c"], g["kp"], g["kd"], g["ki"], 0.0, 0.0,
+                                       rate, 30.0) - Gc) for rate in (1e3, 1e4, 1e5)]
+    assert errors[2] < errors[1] / 5 < errors[0] / 25  # first order: 10x per decade
+    assert errors[2] < 30.0 / 1e5  # |ΔG| ~ ωT/2
 
 
 def test_feed_forward_cancels_the_radius_error():

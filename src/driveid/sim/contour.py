@@ -41,8 +41,8 @@ from driveid.errors import ParameterError
 from driveid.sim.contour_config import AxisConfig, CirclePath, ContourConfig, MeasurementNoise
 from driveid.sim.drive import simulate_drive
 
-__all__ = ["AxisCompensation", "ContourResult", "circle_reference", "contour_metrics",
-           "simulate_contour"]
+__all__ = ["AxisCompensation", "ContourResult", "circle_reference", "closed_loop_gain",
+           "contour_metrics", "simulate_contour"]
 
 _GLITCH_BEFORE = math.radians(10.0)  # a glitch window opens before the reversal [rad]
 _GLITCH_AFTER = math.radians(35.0)  # and closes after it, short of the next quadrant [rad]
@@ -150,6 +150,68 @@ def circle_reference(path: CirclePath, t: np.ndarray) -> dict[str, np.ndarray]:
             "p1": R * c, "v1": -R * s * rate, "a1": -R * c * rate**2 - R * s * accel,
             "p2": sign * R * s, "v2": sign * R * c * rate,
             "a2": sign * (-R * s * rate**2 + R * c * accel)}
+
+
+def closed_loop_gain(J: float, c: float, controller, omega: float, *,
+                     sampled: bool = True) -> complex:
+    r"""Closed-loop response ``x/r`` of a linear axis at ``omega`` (the radius check).
+
+    Parameters
+    ----------
+    J : float
+        Moving mass [kg] (one rigid body, no friction, no backlash).
+    c : float
+        Viscous damping [N·s/m].
+    controller : ControllerParams
+        Gains, feed-forward and sampling rate.
+    omega : float
+        Angular frequency [rad/s] (``feed / radius`` on a circle).
+    sampled : bool
+        True: the sampled-data loop exactly as simulated (plant ``1/(J s² + c s)``
+        discretised with a zero-order hold, the discrete PID of ``ControllerParams``), at the
+        sampling instants. False: the continuous transfer function
+        ``(kp + ki/s + (kd + kv) s + ka s²) / (J s² + c s + kp + ki/s + kd s)``.
+
+    Returns
+    -------
+    complex
+        ``G``: both axes alike, the steady radius is ``R |G|``.
+
+    Notes
+    -----
+    Sampled: with state ``z_k = (x_k, v_k, I_{k-1})`` the loop is ``z_{k+1} = M z_k + N r_k``
+    and the steady phasor ``Z = (e^{jωT} I - M)^{-1} N``, ``G = Z_0``.
+
+    Examples
+    --------
+    >>> from driveid.sim.contour_config import ControllerParams
+    >>> ctl = ControllerParams(kp=2e5, kd=6e3, ki=1e6, rate=1e6)
+    >>> a = closed_loop_gain(50.0, 100.0, ctl, 30.0)
+    >>> b = closed_loop_gain(50.0, 100.0, ctl, 30.0, sampled=False)
+    >>> bool(abs(a - b) < 1e-3)
+    True
+    """
+    kp, kd, ki, kv, ka = (controller.kp, controller.kd, controller.ki, controller.kv,
+                          controller.ka)
+    if not sampled:
+        s = 1j * omega
+        return complex((kp + ki / s + (kd + kv) * s + ka * s**2)
+                       / (J * s**2 + c * s + kp + ki / s + kd * s))
+    from scipy.linalg import expm
+
+    T = 1.0 / controller.rate
+    aug = np.zeros((3, 3))
+    aug[:2, :2] = np.array([[0.0, 1.0], [0.0, -c / J]]) * T
+    aug[1, 2] = T / J
+    E = expm(aug)
+    Ad, Bd = E[:2, :2], E[:2, 2]
+    M = np.zeros((3, 3))
+    M[:2, :2] = Ad - np.outer(Bd, [kp + ki * T, kd])
+    M[:2, 2] = Bd * ki
+    M[2] = [-T, 0.0, 1.0]
+    g = (kp + ki * T) + (kd + kv) * 1j * omega - ka * omega**2
+    N = np.concatenate([Bd * g, [T]])
+    return complex(np.linalg.solve(np.exp(1j * omega * T) * np.eye(3) - M, N)[0])
 
 
 def _direction(v: np.ndarray) -> np.ndarray:
