@@ -103,7 +103,7 @@ def test_validation_and_compensation_preview(circles):
     for wrong in ("friction_low", "friction_high"):  # ±20 % friction still helps
         assert comp[wrong]["peak"] < comp["without"]["peak"]
     # and in the true plant too (the record's own config), not only in the model
-    truth_comp = simulate_contour(cfg, compensation=compensation_from_estimate(est))
+    truth_comp = simulate_contour(cfg, compensation=compensation_from_estimate(est, config=cfg))
     assert circles[(0.025, 0.1)].metrics["peak"] / truth_comp.metrics["peak"] >= 3
 
 

@@ -105,7 +105,7 @@ def simulate_contour_command(config, out, compensate, seed, as_json, overwrite):
         if not isinstance(data, dict):
             raise ConfigError("--compensate: expected a driveid-result JSON object; got "
                               f"{type(data).__name__}")
-        comp = compensation_from_estimate(data)
+        comp = compensation_from_estimate(data, config=cfg)
     result = simulate_contour(cfg, compensation=comp)
     summary = result.summary()
     if comp is not None:
@@ -113,7 +113,8 @@ def simulate_contour_command(config, out, compensate, seed, as_json, overwrite):
         for label, factor in (("without", None), ("friction_low", 0.8),
                               ("friction_high", 1.2)):
             other = simulate_contour(cfg, compensation=None if factor is None else
-                                     compensation_from_estimate(data, friction=factor))
+                                     compensation_from_estimate(data, friction=factor,
+                                                                config=cfg))
             table[label] = other.summary()["radial_error"]
         table["peak_ratio"] = table["without"]["peak"] / max(table["with"]["peak"], 1e-300)
         summary["compensation"] = {"axes": {a: dataclasses.asdict(c) for a, c in comp.items()},

@@ -394,15 +394,21 @@ def _gap(record, a: str, config: ContourConfig, params, speed: float):
     ref = circle_reference(path, t)
     v = ref["v1"] if a == path.axes[0] else ref["v2"]
     steady = (t >= path.ramp) & (t <= path.ramp + path.constant_feed)
+    acc = ref["a1"] if a == path.axes[0] else ref["a2"]
     axis = config.axes[a]
     k = _link_stiffness(axis)
     s = np.sign(v)
-    force = (params[f"{a}.c_mean"].value * v + params[f"{a}.fk_mean"].value * s
-             + params[f"{a}.fk_delta"].value)
+    fk = params[f"{a}.fk_mean"].value
+    # the screw's force: the table's inertia and the friction (taken as behind the backlash)
+    force = (axis.drive.bodies[axis.table].J * acc + params[f"{a}.c_mean"].value * v
+             + fk * s + params[f"{a}.fk_delta"].value)
     sign = 1.0 if axis.controller.body < axis.table else -1.0
     d = sign * (record.motor[a] - record.position[a]) - force / k
-    plus, se_plus = _direction_mean(d, steady & (v > speed))
-    minus, se_minus = _direction_mean(d, steady & (v < -speed))
+    # where the screw clearly pushes (pulls): at high centripetal acceleration the table
+    # decelerates on its own friction and the contact changes sides before the reversal
+    margin = 0.25 * abs(fk)
+    plus, se_plus = _direction_mean(d, steady & (v > speed) & (force > margin))
+    minus, se_minus = _direction_mean(d, steady & (v < -speed) & (force < -margin))
     wind_up = 2.0 * params[f"{a}.fk_mean"].value / k
     # which share of the friction acts before the backlash is unknown: a uniform share in
     # [0, 1] of the wind-up (GUM type B) joins the statistical error
@@ -411,7 +417,9 @@ def _gap(record, a: str, config: ContourConfig, params, speed: float):
 
 
 def compensation_from_estimate(estimate: Estimate | Mapping[str, Any], *,
-                               friction: float = 1.0) -> dict[str, AxisCompensation]:
+                               friction: float = 1.0,
+                               config: ContourConfig | None = None
+                               ) -> dict[str, AxisCompensation]:
     """Per-axis compensation from a contour estimate (or its ``--json`` dict).
 
     Parameters
@@ -420,6 +428,9 @@ def compensation_from_estimate(estimate: Estimate | Mapping[str, Any], *,
         An :func:`estimate_contour` result, or its ``driveid-result/1`` dict.
     friction : float
         Factor on the friction terms [-] (0.8 and 1.2: the model 20 % wrong).
+    config : ContourConfig, optional
+        The axes: the mass behind each backlash (the table) then times the backlash
+        offset by the predicted screw force (:class:`~driveid.sim.contour.AxisCompensation`).
 
     Returns
     -------
@@ -445,8 +456,13 @@ def compensation_from_estimate(estimate: Estimate | Mapping[str, Any], *,
             value = estimate.value(key) if key in estimate else 0.0
             return value if math.isfinite(value) else 0.0
 
+        table_mass = 0.0
+        if config is not None and a in config.axes:
+            axis = config.axes[a]
+            table_mass = axis.drive.bodies[axis.table].J
         out[a] = AxisCompensation(fk_mean=val("fk_mean"), fk_delta=val("fk_delta"),
-                                  c_mean=val("c_mean"), gap=val("gap")).scaled(friction)
+                                  c_mean=val("c_mean"), gap=val("gap"),
+                                  table_mass=table_mass).scaled(friction)
     return out
 
 
@@ -525,7 +541,7 @@ def _simulate_identified(estimate: Estimate, record, config, validate: bool,
         for label, factor in (("without", None), ("with", 1.0), ("friction_low", 0.8),
                               ("friction_high", 1.2)):
             comp = None if factor is None else compensation_from_estimate(
-                estimate, friction=factor)
+                estimate, friction=factor, config=config)
             res = simulate_contour(model, compensation=comp)
             preview[label] = {"rms": res.metrics["rms"], "peak": res.metrics["peak"]}
             if label in ("without", "with"):

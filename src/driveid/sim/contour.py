@@ -59,17 +59,25 @@ class AxisCompensation:
     c_mean : float
         Viscous friction fed forward as ``c_mean v_ref`` [N·s/m].
     gap : float
-        Total backlash [m]: the reference moves by ``+gap/2`` while the commanded velocity is
-        positive and ``-gap/2`` while negative.
+        Total backlash [m]: the reference moves by ``+gap/2`` while the screw pushes the
+        table forward and ``-gap/2`` while it pulls it back.
+    table_mass : float
+        Mass behind the backlash [kg] (default 0). The screw's force is predicted as
+        ``table_mass a_ref + c_mean v_ref + fk_mean sgn(v_ref) + fk_delta``; its sign moves
+        the backlash offset. With 0 the offset follows the commanded velocity, which is the
+        same wherever the table's friction exceeds its inertial force; at high centripetal
+        acceleration the table decelerates on its own friction and the contact changes
+        sides before the reversal, which only the force sign catches.
     """
 
     fk_mean: float = 0.0
     fk_delta: float = 0.0
     c_mean: float = 0.0
     gap: float = 0.0
+    table_mass: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("fk_mean", "fk_delta", "c_mean", "gap"):
+        for name in ("fk_mean", "fk_delta", "c_mean", "gap", "table_mass"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) \
                     or not math.isfinite(value):
@@ -91,7 +99,8 @@ class AxisCompensation:
         """
         return AxisCompensation(fk_mean=self.fk_mean * friction,
                                 fk_delta=self.fk_delta * friction,
-                                c_mean=self.c_mean * friction, gap=self.gap)
+                                c_mean=self.c_mean * friction, gap=self.gap,
+                                table_mass=self.table_mass)
 
 
 def circle_reference(path: CirclePath, t: np.ndarray) -> dict[str, np.ndarray]:
@@ -245,8 +254,11 @@ def _axis_run(axis: AxisConfig, path: CirclePath, which: str | None,
     ff = ctl.kv * vr + ctl.ka * ar
     if compensation is not None:
         s = _direction(vr)
-        ff = ff + compensation.c_mean * vr + compensation.fk_mean * s + compensation.fk_delta
-        r = r + 0.5 * compensation.gap * s
+        friction = compensation.c_mean * vr + compensation.fk_mean * s + compensation.fk_delta
+        ff = ff + friction
+        side = s if compensation.table_mass <= 0 else _direction(
+            compensation.table_mass * ar + friction)
+        r = r + 0.5 * compensation.gap * side
     gains = (ctl.kp, ctl.kd, ctl.ki)
     sensor = ctl.sensor
     state = {"integral": 0.0}
