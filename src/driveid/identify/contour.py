@@ -243,7 +243,7 @@ def _axis_friction(rec, name: str, config: ContourConfig, speed: float, cutoff_h
 
 def estimate_contour(record: ContourRecord, config: ContourConfig, *,
                      min_speed_fraction: float = 0.2, cutoff_hz: float | None = None,
-                     decimate: int = 5, validate: bool = True,
+                     decimate: int | None = None, validate: bool = True,
                      compensation: bool = True) -> Estimate:
     """Identify each axis's Coulomb and viscous friction and backlash from a circle test.
 
@@ -259,8 +259,9 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
     cutoff_hz : float, optional
         Zero-phase low-pass of the position before differentiation [Hz]; default
         ``min(100, fs/10)``.
-    decimate : int
-        Decimation of the regression rows [-], >= 1.
+    decimate : int, optional
+        Decimation of the regression rows [-], >= 1; default ``fs / (4 cutoff)`` (rows at
+        four times the cut-off: less correlated residuals).
     validate : bool
         Simulate the identified axes over the path and compare the radial deviation.
     compensation : bool
@@ -308,7 +309,8 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
     if not 0 < min_speed_fraction < 1:
         raise ParameterError(f"min_speed_fraction must lie in (0, 1); got "
                              f"{min_speed_fraction}")
-    if isinstance(decimate, bool) or not isinstance(decimate, int) or decimate < 1:
+    if decimate is not None and (isinstance(decimate, bool) or not isinstance(decimate, int)
+                                 or decimate < 1):
         raise ParameterError(f"decimate must be an integer >= 1; got {decimate!r}")
     path = config.path
     plane = path.axes
@@ -328,6 +330,8 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
     t = np.asarray(record.t, float)
     fs = 1.0 / float(np.median(np.diff(t)))
     cutoff = min(50.0, fs / 20.0) if cutoff_hz is None else float(cutoff_hz)
+    if decimate is None:
+        decimate = max(1, int(fs / (4.0 * cutoff)))
     speed = min_speed_fraction * path.feed
     params: dict[str, Parameter] = {}
     diagnostics: dict[str, Any] = {"plane": path.plane, "radius": path.radius,
@@ -360,8 +364,9 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
         diagnostics[f"{a}.rows"] = int(resid.size)
         if not white["white"]:
             warnings.append(f"axis {a}: the friction-regression residual is not white "
-                            f"(Ljung-Box p = {white['p_value']:.2g}); its standard errors "
-                            "may be too small")
+                            f"(Ljung-Box p = {white['p_value']:.2g}); its standard errors are "
+                            f"inflated {math.sqrt(inflate):.2g}x for the lag-1 correlation "
+                            "but may still be too small")
         gap, gap_se, lost = _gap(record, a, config, params, speed)
         params[f"{a}.gap"] = Parameter(gap, gap_se, "m")
         if math.isfinite(gap_se):
