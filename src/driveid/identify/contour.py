@@ -30,9 +30,10 @@ scale or ball bar), the motor encoder position ``a_motor`` and the controller co
   enters the standard error (GUM type B) besides the AR(1)-corrected statistical one.
 
 A ball-bar record (time and radial deviation only) holds no command and no motor position:
-the quadrant glitches mix friction, backlash and the loop, and viscous friction and the
-friction asymmetry leave no radial trace. :func:`estimate_contour` refuses it with an
-:class:`~driveid.errors.IdentificationError` that names the missing columns.
+viscous friction and the friction asymmetry leave almost no radial trace, so only each
+axis's ``fk_mean`` and gap are fitted, by output error through the simulated loop
+(:func:`driveid.identify.contour_ballbar.estimate_ball_bar`), the rest taken from the config
+and reported as given, with a warning that says so.
 
 Validation simulates the identified axes (friction on the table, the gap split evenly) over
 the same path and compares the radial deviation with the measured one; the compensation
@@ -281,7 +282,9 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
     Raises
     ------
     IdentificationError
-        For a ball-bar record (radial deviation only): no command, no motor position.
+        If a ball-bar record (radial deviation only, fitted by
+        :func:`~driveid.identify.contour_ballbar.estimate_ball_bar`) covers no constant-feed
+        part or does not determine the parameters.
     RecordError
         If an axis lacks its reference, position or command column.
     ParameterError
@@ -315,11 +318,9 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
     path = config.path
     plane = path.axes
     if record.radial is not None and not record.command:
-        raise IdentificationError(
-            "a ball-bar record (t and radial deviation only) holds no axis command and no "
-            f"motor position: c_mean and fk_delta leave no radial trace and fk_mean, gap "
-            f"and the loop mix in the glitches; record the CNC trace columns "
-            f"{', '.join(f'{a}_ref, {a}, {a}_motor, u_{a}' for a in plane)}")
+        from driveid.identify.contour_ballbar import estimate_ball_bar
+
+        return estimate_ball_bar(record, config)
     for a in plane:
         for kind, chans in (("reference", record.reference), ("position", record.position),
                             ("command", record.command)):

@@ -60,7 +60,7 @@ def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
         from driveid.report.friction_figures import plot_idim
 
         return plot_idim(estimate)
-    if method == "contour-idim":
+    if method in ("contour-idim", "contour-ballbar"):
         from driveid.report.contour_figures import plot_contour_estimate
 
         return plot_contour_estimate(estimate)
