@@ -365,7 +365,8 @@ def contour_metrics(t: np.ndarray, p1: np.ndarray, p2: np.ndarray, path: CircleP
     Returns
     -------
     dict
-        ``radial`` (Δr [m], shape (n,)), ``angle`` (measured angle [rad]), ``steady``
+        ``radial`` (Δr [m], shape (n,)), ``angle`` (measured angle [rad] from the first
+        axis, counted in the direction of travel, so "cw" runs count clockwise), ``steady``
         (bool mask of the constant-feed part), ``rms``, ``peak`` (max ``|Δr|``),
         ``circularity`` (max - min), ``mean`` [m] over the constant-feed part;
         ``glitches``: one dict per axis reversal (``axis``, ``t`` [s], ``where_deg`` (angle
