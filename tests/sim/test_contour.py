@@ -179,3 +179,19 @@ def test_rate_mismatch_and_unknown_compensation_axis_are_refused():
     with pytest.raises(ParameterError, match="compensation names axes"):
         simulate_contour(cfg, compensation={"z": AxisCompensation()})
     assert math.isfinite(cfg.path.duration)
+
+
+def test_third_axis_off_the_plane_holds_still():
+    axis = {"body": [{"J": 50.0, "c_mean": 100.0, "fk_mean": 20.0}],
+            "controller": {"kp": 2e6, "kd": 1.5e4, "ki": 3e7, "rate": 1000.0}}
+    cfg = parse_contour_config({"x": axis, "y": axis, "z": axis, "path": {
+        "radius": 0.02, "feed": 0.05, "revolutions": 0.3, "fs": 1000.0, "plane": "yz"}})
+    res = simulate_contour(cfg)
+    assert list(res.columns())[:4] == ["t", "x_ref", "y_ref", "z_ref"]
+    assert np.all(res.reference["x"] == 0.0)
+    # the off-plane axis only sees its own start: it never leaves the origin (friction holds
+    # it exactly; nothing drives it)
+    assert np.max(np.abs(res.position["x"])) == 0.0
+    # the plane's first axis (y) starts at R cos 45°, its second (z) at R sin 45°
+    assert res.reference["y"][0] == pytest.approx(0.02 * math.cos(math.pi / 4), abs=1e-15)
+    assert res.reference["z"][0] == pytest.approx(0.02 * math.sin(math.pi / 4), abs=1e-15)
