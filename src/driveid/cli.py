@@ -346,6 +346,8 @@ _TOP = {
 _SIMULATE = {
     "free-decay": (_C + "logdec:free_decay_command", "Exact free decay with friction."),
     "drive": (_C + "drive:drive_command", "Lumped multi-body drive from TOML or a preset."),
+    "contour": (_C + "contour:simulate_contour_command",
+                "Circular contour test (ball bar) of two feed axes under PID control."),
 }
 _IDENTIFY = {
     "auto": (_C + "auto:auto_command",
@@ -373,6 +375,8 @@ _IDENTIFY = {
               "Fit the lumped drive of CONFIG (TOML) to motor and load records."),
     "subsystems": (_C + "identify_drive:subsystems_command",
                    "Fit sections A, A+B, A+B+C; each part as their difference."),
+    "contour": (_C + "contour:identify_contour_command",
+                "Circle test: each axis's Coulomb, viscous friction and backlash gap."),
 }
 
 

@@ -60,6 +60,10 @@ def plot_estimate(estimate: Any, *, record: Any = None, ax: Any = None) -> Any:
         from driveid.report.friction_figures import plot_idim
 
         return plot_idim(estimate)
+    if method in ("contour-idim", "contour-ballbar"):
+        from driveid.report.contour_figures import plot_contour_estimate
+
+        return plot_contour_estimate(estimate)
     if method in ("forced-response", "forced-pho", "forced-friction", "describing-function"):
         from driveid.report.forced_figures import plot_forced
 
