@@ -226,7 +226,7 @@ def identify_file(path: str | Path, *, method: str = "output-error",
             "cpu_seconds": time.process_time() - cpu_start}
 
 
-def identify_files(paths: Sequence[str | Path], *, method: str = "logdec",
+def identify_files(paths: Sequence[str | Path], *, method: str = "output-error",
                    method_options: Mapping[str, Any] | None = None,
                    record_options: Mapping[str, Any] | None = None,
                    sha256: Sequence[str | None] | None = None) -> list[dict[str, Any]]:

@@ -94,15 +94,19 @@ def test_passive_bounds_and_at_bound_report():
                   noise_std=0.002, rng=3)
     est = estimate_output_error(rec, mass=1.0)
     assert est.value("zeta_plus") >= 0 and est.value("zeta_minus") >= 0
-    bound = est.diagnostics["at_bound"]
+    # the plausibility check also records ill-determined parameters there (at_bound False)
+    bound = [n for n, e in est.diagnostics["at_bound"].items() if e["at_bound"]]
+    assert bound  # zero damping with noise: one direction at least ends at its bound
     for name in bound:
         assert any(name in w and "bound" in w for w in est.warnings)
         lo, hi = est.diagnostics["one_sided_95"][name]
         assert lo == 0.0 and hi > est.value(name)
     free = estimate_output_error(rec, mass=1.0, passive=False)
     # without the bound a noisy zero damping comes out either sign; with it never negative
-    assert free.diagnostics["at_bound"] == [] or min(free.value("zeta_plus"),
-                                                     free.value("zeta_minus")) >= 0
+    for name in ("zeta_plus", "zeta_minus"):
+        if free.value(name) < 0:  # unbounded, so the plausibility check must say so
+            assert free.diagnostics["at_bound"][name]["at_bound"]
+            assert any(w.startswith(name) for w in free.warnings)
 
 
 def test_non_uniform_timestamps_are_modelled_not_resampled():

@@ -359,7 +359,8 @@ def _decorrelation_lag(r: np.ndarray, lengths: list[int], limit: int = 2000) -> 
         start += length
         size = 1 << int(math.ceil(math.log2(2 * length)))
         spec = np.fft.rfft(block, size)
-        acf += np.fft.irfft(spec * np.conj(spec), size)[:top + 1]
+        m = min(top + 1, length)  # a shorter record has no products at longer lags
+        acf[:m] += np.fft.irfft(spec * np.conj(spec), size)[:m]
     acf /= denom
     below = np.nonzero(acf < 0.1)[0]
     return int(below[0]) if below.size else top

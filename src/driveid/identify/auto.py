@@ -12,9 +12,11 @@ procedure". :func:`identify_auto` does it in three steps:
    PHO campaign, 2.180-2.194).
 3. **Which answer?** The candidates that ran are ranked by their adequacy verdict
    (``diagnostics["adequacy"]["adequate"]``: white prewhitened residuals and no richer
-   structure needed), then by the order of the shape's list (the estimator nearest the
-   Cramér–Rao bound first). The others' values stand beside the chosen ones, with a warning
-   where two disagree by more than 3 combined standard errors.
+   structure needed) — one that passes comes first — then by the order of the shape's list
+   (the estimator nearest the Cramér–Rao bound first). A failed check does not rank below
+   an estimator that runs none: that one is not known to fit better. The others' values
+   stand beside the chosen ones, with a warning where two disagree by more than 3 combined
+   standard errors.
 
 The result is the chosen estimator's :class:`Estimate` (so ``validate`` and ``report`` read it
 as usual) with ``diagnostics["auto"]``: shape, evidence, candidates, the reason for the choice
@@ -162,7 +164,8 @@ def _adequacy(est: Estimate) -> bool | None:
 def _rank(item: tuple[int, str, Estimate]) -> tuple[int, int]:
     order, _, est = item
     verdict = _adequacy(est)
-    return (0 if verdict is True else 1 if verdict is None else 2, order)
+    # no verdict is not a better verdict than a failed one (friction-map runs no check)
+    return (0 if verdict is True else 1, order)
 
 
 def _bic(est: Estimate) -> float | None:
@@ -286,7 +289,7 @@ def identify_auto(records: Record | Sequence[Record], *, mass: float | None = No
     ran.sort(key=_rank)
     _, name, chosen = ran[0]
     verdict_text = {True: "its residuals pass the adequacy checks",
-                    None: "it has no adequacy verdict of its own",
+                    None: "no candidate passes the adequacy checks; it is the first in order",
                     False: "no candidate passes the adequacy checks; it is the first in order"}
     reason = (f"{name} chosen: {verdict_text[_adequacy(chosen)]}"
               + ("" if len(candidates) == 1 else

@@ -438,8 +438,12 @@ def estimate_drive(
         warnings.append(f"{all_names[j]} = {theta[j]:.6g} ended at its bound "
                         f"({'lower' if z[j] - lower[j] <= _BOUND_TOL * span[j] else 'upper'}); "
                         "its standard error is not available and the others' hold it there")
+    # the same shape as every estimator's (see _plausibility): name -> its bound
+    held = {all_names[j]: {"bound": float((lower[j] if z[j] - lower[j] <= _BOUND_TOL * span[j]
+                                           else upper[j]) * scale_all[j]),
+                           "value": float(theta[j]), "at_bound": True} for j in at_bound}
     return _result(start, base, names, all_names, theta, cov, recs, problems, index,
-                   fit, z, states0, free_states, at_bound, units, input_body, use_u, sol,
+                   fit, z, states0, free_states, held, units, input_body, use_u, sol,
                    noise_info, cond, s2, warnings, tic, x0 is not None, v0 is not None,
                    cov_method)
 
@@ -724,7 +728,7 @@ def _result(start, base, names, all_names, theta, cov, recs, problems, index, fi
         "channels": sorted({c for r in recs for c in r.channels}),
         "residual_rms": rms,
         "whiteness": white,
-        "at_bound": [all_names[j] for j in at_bound],
+        "at_bound": at_bound,
         "noise_model": noise_info if noise_info is not None else "white",
         "s2": s2,
         "covariance_method": cov_method,

@@ -478,7 +478,8 @@ def estimate_output_error(
     bootstrap : int
         Bootstrap replicates for quantised records [-]; >= 25.
     rng : Generator or int, optional
-        Random generator or seed of the bootstrap.
+        Random generator or seed of the bootstrap; default seed 0, so that the same
+        record always gets the same error bars.
     progress : callable, optional
         Called as ``progress(done, total)`` after each bootstrap refit (the long part of a
         quantised record: about 0.2-0.4 s a refit at 30 000 samples).
@@ -737,7 +738,7 @@ def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progres
     With a coloured noise model the noise re-added before re-quantising is AR noise of the
     fitted spectrum (not white), and each replicate is refitted with the same prewhitening.
     """
-    gen = np.random.default_rng(rng)
+    gen = np.random.default_rng(0 if rng is None else rng)  # reproducible by default
     fitted, _ = problem.model(chosen["p"], chosen["counts"], jacobian=False)
     # noise beyond the rounding itself (variance q²/12), re-added before re-quantising
     noise = problem.noise
@@ -894,7 +895,10 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
             "structure": adequacy["structures"]["chosen"] if adequacy["structures"]
             else "viscous + Coulomb",
             "adequacy": adequacy,
-            "at_bound": at_bound,
+            "at_bound": {n: {"bound": 0.0, "value": params[n].value,
+                             "stderr": params[n].stderr, "at_bound": True,
+                             "upper_95": one_sided[n][1],
+                             "interval": "one-sided [0, upper_95]"} for n in at_bound},
             "one_sided_95": one_sided,
         },
     )

@@ -622,7 +622,9 @@ def estimate_pho_output_error(
             "misfit_ratio": misfit,
             "structure": chosen["structure"].name,
             "static_band": band,  # None only with static="kinetic"
-            "at_bound": core.at_bounds(theta, fit_free, lower),
+            # active constraints, keyed like every estimator's at_bound (see _plausibility)
+            "at_bound": {name: {"at_bound": True}
+                         for name in core.at_bounds(theta, fit_free, lower)},
             "noise_model": noise.to_dict(),
             "adequacy": adequacy.to_dict(),
         },
