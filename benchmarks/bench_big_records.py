@@ -232,7 +232,7 @@ def _run(args: list[str], timeout: float) -> dict:
 def _profile_logdec(path: Path, n: int) -> None:
     import tracemalloc
 
-    from driveid.identify.logdec import estimate_log_decrement
+    from driveid.identify.free_decay.logdec import estimate_log_decrement
     from driveid.io import read_record
     from driveid.signal.peaks import dominant_period, find_oscillation_peaks
 

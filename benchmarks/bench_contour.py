@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from driveid.identify.contour import (
+from driveid.identify.contour.circle import (
     ContourRecord,
     compensation_from_estimate,
     estimate_contour,

@@ -17,8 +17,8 @@ import time
 
 import numpy as np
 
-from driveid.identify._drive_model import get_value, with_values
-from driveid.identify.drive_fit import DriveRecord, estimate_drive
+from driveid.identify.drive._drive_model import get_value, with_values
+from driveid.identify.drive.drive_fit import DriveRecord, estimate_drive
 from driveid.sim import simulate_drive
 from driveid.sim.presets import preset_testbed
 

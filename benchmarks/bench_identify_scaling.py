@@ -25,9 +25,9 @@ import tracemalloc
 
 import numpy as np
 
-from driveid.identify.hilbert import estimate_hilbert
-from driveid.identify.logdec import estimate_log_decrement
-from driveid.identify.wavelet import estimate_wavelet
+from driveid.identify.free_decay.hilbert import estimate_hilbert
+from driveid.identify.free_decay.logdec import estimate_log_decrement
+from driveid.identify.free_decay.wavelet import estimate_wavelet
 from driveid.io.record import Record
 
 F0, ZETA, NOISE = 2.0, 0.02, 1e-3

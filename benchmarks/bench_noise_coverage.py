@@ -28,9 +28,9 @@ import numpy as np
 from scipy.signal import butter, lfilter
 
 from driveid.errors import DriveIdError
-from driveid.identify._noise import fit_noise_model
+from driveid.identify.core._noise import fit_noise_model
 from driveid.identify.crlb import free_decay_crlb
-from driveid.identify.output_error import estimate_output_error
+from driveid.identify.free_decay.output_error import estimate_output_error
 from driveid.sim import OscillatorParams, simulate_free_decay
 
 P = OscillatorParams(J=1.0, K=16.0, c_mean=0.3, c_delta=0.1, fk_mean=0.07, fk_delta=0.03)

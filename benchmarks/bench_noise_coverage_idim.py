@@ -29,8 +29,8 @@ import time
 import numpy as np
 from scipy.signal import butter, lfilter
 
-from driveid.identify.forced import estimate_forced_response
-from driveid.identify.idim import estimate_idim
+from driveid.identify.forced.forced import estimate_forced_response
+from driveid.identify.friction.idim import estimate_idim
 from driveid.io.record import Record
 
 NOISES = ("white", "ar1-0.9", "band-25Hz")

@@ -26,8 +26,8 @@ import numpy as np
 
 from driveid.errors import DriveIdError
 from driveid.identify.crlb import free_decay_crlb
-from driveid.identify.logdec import estimate_log_decrement
-from driveid.identify.output_error import estimate_output_error
+from driveid.identify.free_decay.logdec import estimate_log_decrement
+from driveid.identify.free_decay.output_error import estimate_output_error
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
 
 # (ω0, f̄k, Δfk, c̄, Δc), thesis Table 5.1 (as examples/logdec_table_5_1.py)

@@ -42,8 +42,8 @@ import warnings
 import numpy as np
 
 from driveid.errors import DriveIdError
-from driveid.identify.pho import estimate_pho_records
-from driveid.identify.pho_fit import estimate_pho_output_error
+from driveid.identify.pho.peaks import estimate_pho_records
+from driveid.identify.pho.pho_fit import estimate_pho_output_error
 from driveid.io.record import Record
 from driveid.sim import simulate_drive
 from driveid.sim.drive import BodyParams, DriveParams, PDFeedback

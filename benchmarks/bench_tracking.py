@@ -4,7 +4,7 @@ Workload: the drifting drive of ``tests/identify/test_online.py`` (J = 0.0115 kg
 friction 0.10 N·m rising by 30 % with τ = 1200 s, viscous 0.002 N·m·s/rad drifting +50 %
 over 2 h, asymmetric parts 0.0004 N·m·s/rad and 0.01 N·m), PD-tracking a two-sine
 reference, command noise 0.02 N·m, generated chunk-wise (60 s chunks) by an RK4 integrator
-and streamed into :func:`driveid.identify.online.track_friction` (memory τ/10 = 120 s).
+and streamed into :func:`driveid.identify.friction.online.track_friction` (memory τ/10 = 120 s).
 
 Printed per record length (0.5, 1, 2 h at 200 Hz):
 * peak traced memory of the streaming tracker (tracemalloc; generator included) against the
@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.identify.test_online import TAU, c_true, drift_chunks, fk_true  # noqa: E402
 
-from driveid.identify.online import track_friction  # noqa: E402
+from driveid.identify.friction.online import track_friction  # noqa: E402
 
 FS = 200.0
 

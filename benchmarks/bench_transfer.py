@@ -25,7 +25,7 @@ import time
 import numpy as np
 from scipy.signal import cont2discrete, dlsim, lfilter
 
-from driveid.identify.transfer import estimate_transfer
+from driveid.identify.forced.transfer import estimate_transfer
 from driveid.io.record import Record
 from driveid.signal.excitation import multisine, prbs
 

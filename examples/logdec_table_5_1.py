@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from driveid.identify.logdec import (  # noqa: E402
+from driveid.identify.free_decay.logdec import (  # noqa: E402
     estimate_log_decrement,
     estimate_log_decrement_thesis,
 )

@@ -21,7 +21,7 @@ import matplotlib
 matplotlib.use("Agg")
 
 from driveid.experiment import SimulatedPlant, run_pho_campaign  # noqa: E402
-from driveid.identify.pho import estimate_pho_records  # noqa: E402
+from driveid.identify.pho.peaks import estimate_pho_records  # noqa: E402
 from driveid.io import ensure_writable  # noqa: E402
 from driveid.report.figures import plot_estimate  # noqa: E402
 from driveid.sim.presets import preset  # noqa: E402

@@ -105,12 +105,12 @@ def test_demo_writes_a_new_numbered_folder(runner, tmp_path):
 
 
 def test_result_schema_round_trip_and_series():
-    from driveid.identify.estimate import Estimate, Parameter
+    from driveid.identify.core.estimate import Estimate, Parameter
     from driveid.sim import OscillatorParams, simulate_free_decay
 
     rec = simulate_free_decay(OscillatorParams(J=1, K=16, c_mean=0.3, fk_mean=0.07), x0=1.0,
                               duration=15.0).record
-    from driveid.identify.logdec import estimate_log_decrement
+    from driveid.identify.free_decay.logdec import estimate_log_decrement
 
     est = estimate_log_decrement(rec, mass=1.0).with_inputs([rec])
     data = json.loads(est.to_json(command=["driveid", "identify", "logdec"]))
@@ -129,8 +129,8 @@ def test_result_schema_round_trip_and_series():
 
 
 def test_plausibility_guards_name_cause_and_remedy():
-    from driveid.identify._plausibility import check_plausibility
-    from driveid.identify.estimate import Estimate, Parameter
+    from driveid.identify.core._plausibility import check_plausibility
+    from driveid.identify.core.estimate import Estimate, Parameter
 
     est = Estimate("idim", {"M": Parameter(-0.4, 0.1, "kg"), "Fv": Parameter(-2.0, 0.5, "N·s/m"),
                             "Fc": Parameter(0.01, 0.5, "N"), "K": Parameter(0.0, 1.0, "N/m",
@@ -152,7 +152,7 @@ def test_backlash_damper_inverse_fit_warns_not_silently_negative(runner, tmp_pat
     inverse-model fit must say so instead of returning it silently.
     """
     from driveid.commands._output import OutputOptions, emit
-    from driveid.identify.estimate import Estimate, Parameter
+    from driveid.identify.core.estimate import Estimate, Parameter
 
     t = np.arange(4000) * 1e-3
     x = 0.01 * np.sin(2 * np.pi * 2 * t)

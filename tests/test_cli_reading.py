@@ -97,7 +97,7 @@ def test_simulate_drive_then_logdec(tmp_path):
     # measured agreement 2e-4 (peak-time resolution at 1 kHz), tolerance 1e-3
     import math
 
-    from driveid.identify.pho import delay_factors
+    from driveid.identify.pho.peaks import delay_factors
 
     plant = preset("testbed-a")
     par = est["parameters"]
@@ -208,8 +208,8 @@ def test_estimators_resample_a_non_uniform_record_with_a_warning():
     import numpy as np
 
     from driveid.errors import RecordWarning
-    from driveid.identify.hilbert import estimate_hilbert
-    from driveid.identify.logdec import estimate_log_decrement
+    from driveid.identify.free_decay.hilbert import estimate_hilbert
+    from driveid.identify.free_decay.logdec import estimate_log_decrement
     from driveid.io import Record
     from tests.fixtures.formats import jittery_decay
 

@@ -190,7 +190,7 @@ def test_forced_and_envelope_commands(tmp_path):
     assert fig_path.stat().st_size > 0
     # the figure's run markers are the measured dynamic stiffness, which for this exact linear
     # response lies on the model K - Jω² and at C (2 % as the K check above)
-    from driveid.identify.forced import estimate_forced_response
+    from driveid.identify.forced.forced import estimate_forced_response
     from driveid.report.forced_figures import plot_forced
 
     fig = plot_forced(estimate_forced_response([read_record(p) for p in paths]))

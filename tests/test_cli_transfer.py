@@ -40,8 +40,8 @@ def test_coupled_drives_like_file_without_time_speed_magnitude_only():
     assert data["data_used"]["output_nonlinearity"] == "abs"
     assert len(data["data_used"]["den"]) == 4  # third order, handed on as num/den
     # the saved result hands the model on: its poles carry the reported resonance
-    from driveid.identify.estimate import Estimate
-    from driveid.identify.transfer import transfer_function
+    from driveid.identify.core.estimate import Estimate
+    from driveid.identify.forced.transfer import transfer_function
 
     poles = transfer_function(Estimate.from_dict(data)).poles
     assert np.max(np.abs(poles)) == pytest.approx(par["omega0_1"]["value"], rel=1e-9)

@@ -81,7 +81,7 @@ def test_sphinx_build_has_no_warnings(tmp_path):
     assert done.returncode == 0, report
     assert "WARNING" not in done.stderr and "ERROR" not in done.stderr, report
     assert (tmp_path / "html" / "tutorial.html").is_file()
-    api = tmp_path / "html" / "api" / "generated" / "driveid.identify.logdec.html"
+    api = tmp_path / "html" / "api" / "generated" / "driveid.identify.free_decay.logdec.html"
     assert "estimate_log_decrement" in api.read_text(encoding="utf-8")
 
 

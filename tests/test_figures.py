@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from driveid.identify.logdec import estimate_log_decrement
+from driveid.identify.free_decay.logdec import estimate_log_decrement
 from driveid.report.figures import _is_maximum, plot_log_decrement
 from driveid.sim import OscillatorParams, simulate_free_decay
 

@@ -55,3 +55,18 @@ def test_batches_catalogue_every_record_once(fleet, tmp_path):
 def test_batch_size_is_checked_before_submitting(fleet, tmp_path):
     with pytest.raises(ConfigError, match="batch_size must be"):
         identify_many([str(f) for f in fleet], catalog=tmp_path / "c.sqlite", batch_size=0)
+
+
+def test_method_auto_recognises_free_decays_and_agrees_with_the_direct_fit(fleet):
+    """``--method auto`` on a fleet of free decays: the shape is recognised and the chosen
+    estimator is the whole-record fit, with the same values as ``method="output-error"``."""
+    path = fleet[0]
+    auto = identify_file(path, method="auto", method_options={"mass": 1.0})
+    direct = identify_file(path, method="output-error", method_options={"mass": 1.0})
+    assert auto["status"] == direct["status"] == "ok"
+    diag = auto["result"]["diagnostics"]["auto"]
+    assert diag["shape"] == "free-decay" and diag["chosen"] == "output-error"
+    for name in ("K", "fk_mean", "c_mean"):
+        a, d = auto["result"]["parameters"][name], direct["result"]["parameters"][name]
+        # the same estimator on the same record: equal to solver accuracy
+        assert a["value"] == pytest.approx(d["value"], rel=1e-6)

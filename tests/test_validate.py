@@ -10,9 +10,9 @@ from click.testing import CliRunner
 from driveid.commands.validate import validate_command
 from driveid.demo import DEMO_PARAMS
 from driveid.errors import IdentificationError, RecordError
-from driveid.identify.estimate import Estimate, Parameter
-from driveid.identify.logdec import estimate_log_decrement
-from driveid.identify.output_error import estimate_output_error
+from driveid.identify.core.estimate import Estimate, Parameter
+from driveid.identify.free_decay.logdec import estimate_log_decrement
+from driveid.identify.free_decay.output_error import estimate_output_error
 from driveid.io import read_record, write_record
 from driveid.io.record import Record
 from driveid.models.dynamic_friction import LuGreParams
@@ -259,10 +259,10 @@ def test_unmodelled_effect_gives_non_white_residuals(kind, body):
 
 def test_identified_estimates_validate_and_predict_held_out_runs():
     """Real estimators, not only true models: forced response, IDIM, PHO campaign."""
-    from driveid.identify.forced import estimate_forced_response
-    from driveid.identify.idim import estimate_idim
-    from driveid.identify.pho import estimate_pho_records
-    from driveid.identify.pho_fit import estimate_pho_output_error
+    from driveid.identify.forced.forced import estimate_forced_response
+    from driveid.identify.friction.idim import estimate_idim
+    from driveid.identify.pho.peaks import estimate_pho_records
+    from driveid.identify.pho.pho_fit import estimate_pho_output_error
 
     t = np.arange(6001) / 1000.0
     body = BodyParams(J=0.02, K=8.0, c_mean=0.2)  # settles in ~2 s

@@ -49,7 +49,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from driveid.errors import IdentificationError, RecordError
-from driveid.identify.estimate import Estimate
+from driveid.identify.core.estimate import Estimate
 from driveid.io.record import Record
 
 __all__ = ["FREE_DECAY", "SUPPORTED", "DriveModel", "drive_model", "kind_of",

@@ -15,8 +15,8 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-from driveid.identify.logdec import estimate_log_decrement, estimate_log_decrement_thesis
-from driveid.identify.output_error import estimate_output_error
+from driveid.identify.free_decay.logdec import estimate_log_decrement, estimate_log_decrement_thesis
+from driveid.identify.free_decay.output_error import estimate_output_error
 from driveid.io import write_record
 from driveid.report.figures import plot_estimate, save_figure
 from driveid.sim import OscillatorParams, measure, simulate_free_decay

@@ -39,7 +39,7 @@ __all__ = ["DEFAULT_PATH_PATTERN", "METHODS", "FleetSummary", "identify_many", "
 #: How machine, axis and time are read from a record's path (its last components).
 DEFAULT_PATH_PATTERN = "{machine}/{axis}/{time}"
 #: Methods a fleet run can use.
-METHODS = ("logdec", "output-error")
+METHODS = ("logdec", "output-error", "auto")
 _FIELDS = ("machine", "axis", "time", "type")
 
 
@@ -170,9 +170,10 @@ def identify_file(path: str | Path, *, method: str = "output-error",
     ----------
     path : str or Path
         The record.
-    method : {"output-error", "logdec"}
-        Estimator: the whole-record output-error fit (default, as ``identify logdec``) or
-        the peak log decrement.
+    method : {"output-error", "logdec", "auto"}
+        Estimator: the whole-record output-error fit (default, as ``identify logdec``), the
+        peak log decrement, or ``auto`` (:func:`driveid.identify_auto`: recognise each
+        record's test and run what applies; ``diagnostics["auto"]`` says what and why).
     method_options : mapping, optional
         Keywords of the estimator (e.g. ``{"mass": 1.0}``).
     record_options : mapping, optional
@@ -236,7 +237,7 @@ def identify_files(paths: Sequence[str | Path], *, method: str = "output-error",
     ----------
     paths : sequence of str or Path
         The records.
-    method : {"logdec", "output-error"}
+    method : {"output-error", "logdec", "auto"}
         Estimator.
     method_options : mapping, optional
         Keywords of the estimator (e.g. ``{"mass": 1.0}``).
@@ -258,12 +259,16 @@ def identify_files(paths: Sequence[str | Path], *, method: str = "output-error",
 
 def _estimator(method: str):
     if method == "logdec":
-        from driveid.identify.logdec import estimate_log_decrement
+        from driveid.identify.free_decay.logdec import estimate_log_decrement
 
         return estimate_log_decrement
+    if method == "auto":
+        from driveid.identify.auto import identify_auto
+
+        return identify_auto
     if method == "output-error":
         try:
-            from driveid.identify.output_error import estimate_output_error
+            from driveid.identify.free_decay.output_error import estimate_output_error
         except ImportError:
             raise ConfigError("method 'output-error' is not available in this driveid; use "
                               "--method logdec") from None
@@ -301,9 +306,10 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "ou
     ----------
     paths : str or Path or sequence
         Record files or glob patterns (``'traces/**/*.csv'``, recursive).
-    method : {"output-error", "logdec"}
+    method : {"output-error", "logdec", "auto"}
         Estimator: the whole-record output-error fit (default, the one ``identify logdec``
-        runs; near the Cramér-Rao bound) or the peak log decrement (``logdec``).
+        runs; near the Cramér-Rao bound), the peak log decrement (``logdec``) or ``auto``
+        (each record's test shape recognised, see :func:`driveid.identify_auto`).
     method_options : mapping, optional
         Estimator keywords, e.g. ``{"mass": 1.0}`` [kg or kg·m²]; checked before submitting.
     record_options : mapping or RecordOptions, optional

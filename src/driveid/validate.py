@@ -48,8 +48,8 @@ from scipy.stats import chi2
 
 from driveid._validate_models import FREE_DECAY, drive_model, kind_of, simulate_model
 from driveid.errors import IdentificationError
-from driveid.identify._free_response import kinetic_stop_count, response
-from driveid.identify.estimate import Estimate
+from driveid.identify.core.estimate import Estimate
+from driveid.identify.free_decay._free_response import kinetic_stop_count, response
 from driveid.io.record import Record
 from driveid.sim import OscillatorParams, simulate_free_decay
 
@@ -327,7 +327,7 @@ def compare(record: Record, estimate: Estimate, *, index: int | None = None,
 
     Examples
     --------
-    >>> from driveid.identify.output_error import estimate_output_error
+    >>> from driveid.identify.free_decay.output_error import estimate_output_error
     >>> from driveid.sim import measure
     >>> p = OscillatorParams(J=1.0, K=16.0, c_mean=0.3, c_delta=0.1, fk_mean=0.07,
     ...                      fk_delta=0.03)

@@ -22,7 +22,7 @@ from driveid.health import (
     read_blueprint,
     write_blueprint,
 )
-from driveid.identify.estimate import Parameter
+from driveid.identify.core.estimate import Parameter
 
 NOMINAL = {"K": 160.0, "fk_mean": 0.3}
 BETWEEN = {"K": 6.0, "fk_mean": 0.02}   # axis-to-axis spread

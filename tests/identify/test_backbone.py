@@ -4,7 +4,7 @@ Truth: closed forms. A linear spring has a constant backbone; a cubic (Duffing) 
 ``x'' + K x + k3 x³ = 0`` has the exact frequency ``pi wn sqrt(1 + eps A²) / (2 K(m))``,
 ``m = eps A² / (2 (1 + eps A²))``, ``eps = k3/K`` (A the peak displacement; first-order
 harmonic balance gives ``wn² (1 + 3/4 eps A²)``); a dead-zone spring of half-width b has
-``T = (2 pi / wn) (1 + 2 b / (pi (A - b)))`` (see :mod:`driveid.identify.backbone`).
+``T = (2 pi / wn) (1 + 2 b / (pi (A - b)))`` (see :mod:`driveid.identify.free_decay.backbone`).
 """
 
 import math
@@ -16,9 +16,9 @@ from scipy.signal import find_peaks
 from scipy.special import ellipk
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify.backbone import backbone_of, compute_backbone
-from driveid.identify.hilbert import estimate_hilbert
-from driveid.identify.wavelet import estimate_wavelet
+from driveid.identify.free_decay.backbone import backbone_of, compute_backbone
+from driveid.identify.free_decay.hilbert import estimate_hilbert
+from driveid.identify.free_decay.wavelet import estimate_wavelet
 from driveid.io.record import Record
 from driveid.sim.drive import simulate_drive
 from driveid.sim.drive_types import BacklashLink, BodyParams, DriveParams

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify.breakaway import estimate_breakaway_sliding
+from driveid.identify.friction.breakaway import estimate_breakaway_sliding
 from driveid.io.record import Record
 from driveid.models.dynamic_friction import LuGreParams
 from driveid.sim import BodyParams, DriveParams, simulate_drive
@@ -76,8 +76,8 @@ def test_spread_errors_say_how_much_they_cover():
 
 
 def test_rising_static_friction_from_ramp_dwell_times():
-    from driveid.identify.breakaway import rising_friction_from_breakaways
-    from driveid.identify.estimate import Estimate
+    from driveid.identify.core.estimate import Estimate
+    from driveid.identify.friction.breakaway import rising_friction_from_breakaways
     from driveid.models.friction_memory import KatoRisingParams, rising_static_friction_kato
 
     # breakaways after log-spaced dwells on the Kato curve (2.6): closed-form truth

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.contour import (
+from driveid.identify.contour.circle import (
     ContourRecord,
     compensation_from_estimate,
     estimate_contour,

@@ -7,7 +7,7 @@ import pytest
 
 from driveid.errors import IdentificationError, ParameterError
 from driveid.identify.crlb import free_decay_crlb, required_duration
-from driveid.identify.output_error import estimate_output_error
+from driveid.identify.free_decay.output_error import estimate_output_error
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
 
 P = OscillatorParams(J=1.0, K=16.0, c_mean=0.3, c_delta=0.1, fk_mean=0.07, fk_delta=0.03)
@@ -88,8 +88,8 @@ def test_coloured_noise_bound():
     # Toeplitz covariance σ² φ^|i-j|
     from scipy.linalg import toeplitz
 
-    from driveid.identify._free_response import kinetic_stop_count, response
     from driveid.identify.crlb import _base
+    from driveid.identify.free_decay._free_response import kinetic_stop_count, response
 
     phi, fs, duration = 0.9, 20.0, 15.0
     red = free_decay_crlb(P, fs=fs, duration=duration, x0=10, noise_std=0.01,

@@ -1,4 +1,4 @@
-"""Whole-drive output-error fit (driveid.identify.drive_fit) on simulated drives."""
+"""Whole-drive output-error fit (driveid.identify.drive.drive_fit) on simulated drives."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from driveid.errors import ParameterError
-from driveid.identify._drive_model import get_value, with_values
-from driveid.identify.drive_fit import DriveRecord, drive_start_values, estimate_drive
+from driveid.identify.drive._drive_model import get_value, with_values
+from driveid.identify.drive.drive_fit import DriveRecord, drive_start_values, estimate_drive
 from driveid.sim import simulate_drive
 from driveid.sim.presets import preset_testbed
 
@@ -180,7 +180,7 @@ def test_against_an_independent_solve_ivp_drive():
 def test_table_5_2_sections_within_two_percent():
     """Thesis Table 5.2 procedure on the simulated test bed: sections A, A+B, A+B+C (each a
     lumped body under the delayed PD loop, published values) fitted in sequence."""
-    from driveid.identify.subsystems import subsystem_differences
+    from driveid.identify.drive.subsystems import subsystem_differences
     from driveid.sim import BodyParams, DriveParams
     from driveid.sim.presets import TABLE_5_2_PUBLISHED, preset_testbed_a
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify.envelope_friction import friction_from_envelope
-from driveid.identify.hilbert import estimate_hilbert
-from driveid.identify.wavelet import estimate_wavelet
+from driveid.identify.free_decay.envelope_friction import friction_from_envelope
+from driveid.identify.free_decay.hilbert import estimate_hilbert
+from driveid.identify.free_decay.wavelet import estimate_wavelet
 from driveid.sim import OscillatorParams, simulate_free_decay
 
 from .test_logdec import TABLE_5_1

@@ -5,8 +5,8 @@ import warnings
 import numpy as np
 import pytest
 
-from driveid.identify.hilbert import estimate_envelope_damping
-from driveid.identify.logdec import estimate_log_decrement
+from driveid.identify.free_decay.hilbert import estimate_envelope_damping
+from driveid.identify.free_decay.logdec import estimate_log_decrement
 from driveid.io.record import Record
 from driveid.sim import OscillatorParams, simulate_free_decay
 

@@ -5,7 +5,7 @@ import math
 import pytest
 
 from driveid.errors import ParameterError
-from driveid.identify.estimate import Estimate, Parameter
+from driveid.identify.core.estimate import Estimate, Parameter
 
 
 def _est():

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.forced import (
+from driveid.identify.forced.forced import (
     estimate_forced_pho,
     estimate_forced_response,
     fit_sine_response,

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify.forced import estimate_forced_pho, estimate_forced_response
-from driveid.identify.forced_friction import (
+from driveid.identify.forced.forced import estimate_forced_pho, estimate_forced_response
+from driveid.identify.forced.forced_friction import (
     estimate_forced_friction,
     sine_grid_test,
     sine_harmonics,

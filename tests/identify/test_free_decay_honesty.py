@@ -14,10 +14,10 @@ from scipy.signal import lfilter
 
 from driveid.cli import cli
 from driveid.errors import RecordWarning
-from driveid.identify import _free_response, output_error
-from driveid.identify._free_decay_structures import StreamWhitener
-from driveid.identify._noise import NoiseModel
-from driveid.identify.output_error import estimate_output_error
+from driveid.identify.core._noise import NoiseModel
+from driveid.identify.free_decay import _free_response, output_error
+from driveid.identify.free_decay._free_decay_structures import StreamWhitener
+from driveid.identify.free_decay.output_error import estimate_output_error
 from driveid.io import read_record
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
 from tests.fixtures.free_decays import (

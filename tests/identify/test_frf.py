@@ -7,7 +7,7 @@ import pytest
 
 from driveid.errors import IdentificationError, RecordError
 from driveid.experiment.excitation import SimulatedExcitationPlant, run_excitations
-from driveid.identify.frf import (
+from driveid.identify.forced.frf import (
     estimate_describing_friction,
     estimate_frf,
     frequency_response,
@@ -91,7 +91,7 @@ def test_welch_h1_is_unbiased_by_output_noise():
 def test_describing_function_friction_with_asymmetry():
     # Stepped sines, 3 frequencies × 2 amplitudes, on the test bed (P = 5, D = 0.1, Δ =
     # 13.77 ms) with asymmetric friction. The joint weighted fit of
-    # driveid.identify.forced_friction measured fk_mean -0.12 %, fk_delta +0.14 %,
+    # driveid.identify.forced.forced_friction measured fk_mean -0.12 %, fk_delta +0.14 %,
     # c_delta +0.4 %, J +0.19 % although single runs carry up to 25 % velocity harmonics
     # (their DF errors partly cancel across the grid, see test_forced_friction.py); the
     # tolerances (1 %, 1 %, 3 %, 1 %) keep a 5-8× margin. c_mean (0.00075) is swamped by

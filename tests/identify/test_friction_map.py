@@ -1,4 +1,5 @@
-"""Tests of driveid.identify.friction_map: synthetic maps with known truth, TRO 2021 data."""
+"""Tests of driveid.identify.friction.friction_map: synthetic maps with known truth, TRO 2021
+data."""
 
 from pathlib import Path
 
@@ -6,7 +7,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import FileFormatError, IdentificationError, ParameterError, RecordError
-from driveid.identify.friction_map import (
+from driveid.identify.friction.friction_map import (
     estimate_friction_map,
     read_tro2021_steady_state,
     steady_points,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import ParameterError, RecordError
-from driveid.identify.friction_map import binned_points, estimate_friction_map
+from driveid.identify.friction.friction_map import binned_points, estimate_friction_map
 from driveid.io.record import Record
 
 

@@ -6,7 +6,7 @@ set of ± torque levels gives a steady-velocity experiment with known asymmetric
 
 import numpy as np
 
-from driveid.identify.friction_map import estimate_friction_map
+from driveid.identify.friction.friction_map import estimate_friction_map
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from driveid.identify.friction_map import estimate_friction_map, steady_points
+from driveid.identify.friction.friction_map import estimate_friction_map, steady_points
 from driveid.io.record import Record
 from driveid.signal.steady import find_steady_segments
 

@@ -7,7 +7,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.hilbert import (
+from driveid.identify.free_decay.hilbert import (
     _limit_cycle_phasor,
     estimate_envelope_damping,
     estimate_hilbert,

@@ -1,4 +1,5 @@
-"""Tests of driveid.identify.idim: synthetic truth and the EMPS benchmark's published values."""
+"""Tests of driveid.identify.friction.idim: synthetic truth and the EMPS benchmark's published
+values."""
 
 from pathlib import Path
 
@@ -6,8 +7,8 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.estimate import Estimate
-from driveid.identify.idim import estimate_idim, idim_regressor, validate_idim
+from driveid.identify.core.estimate import Estimate
+from driveid.identify.friction.idim import estimate_idim, idim_regressor, validate_idim
 from driveid.io.record import Record
 
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "EMPS"
@@ -169,7 +170,7 @@ def test_emps_command_line(emps):
 def test_emps_direct_simulation_within_published_errors(emps):
     from scipy.io import loadmat
 
-    from driveid.identify.idim import simulate_idim_model
+    from driveid.identify.friction.idim import simulate_idim_model
 
     est = estimate_idim(emps[0])
     for rec, name, pub_pos, pub_force in ((emps[0], "DATA_EMPS.mat", 0.013752, 5.848),
@@ -186,7 +187,7 @@ def test_emps_direct_simulation_within_published_errors(emps):
 
 
 def test_simulate_idim_model_errors():
-    from driveid.identify.idim import simulate_idim_model
+    from driveid.identify.friction.idim import simulate_idim_model
 
     rec = _synthetic()
     est = estimate_idim(rec, cutoff_hz=50.0)

@@ -13,8 +13,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify._expressions import evaluate_expression, parse_expression
-from driveid.identify.idim import estimate_idim, validate_idim
+from driveid.identify.core._expressions import evaluate_expression, parse_expression
+from driveid.identify.friction.idim import estimate_idim, validate_idim
 from driveid.io.record import Record
 from driveid.sim import BacklashLink, BodyParams, DriveParams, simulate_drive
 

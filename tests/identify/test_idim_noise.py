@@ -9,7 +9,7 @@ import pytest
 from scipy.signal import lfilter
 
 from driveid.errors import RecordWarning
-from driveid.identify.idim import estimate_idim
+from driveid.identify.friction.idim import estimate_idim
 from driveid.io.record import Record
 
 TRUTH = {"M": 10.0, "Fv": 50.0, "Fc": 3.0, "offset": -0.5}
@@ -154,8 +154,8 @@ def test_band_limited_noise_keeps_the_ordinary_fit_with_ar_covariance():
 def test_ar_covariance_of_least_squares_equals_the_dense_toeplitz_product():
     from scipy.linalg import toeplitz
 
-    from driveid.identify._idim_noise import _ar_ols_covariance
-    from driveid.identify._noise import NoiseModel
+    from driveid.identify.core._noise import NoiseModel
+    from driveid.identify.friction._idim_noise import _ar_ols_covariance
 
     rng = np.random.default_rng(7)
     W = rng.standard_normal((300, 3))

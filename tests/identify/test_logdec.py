@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.logdec import estimate_log_decrement, estimate_log_decrement_thesis
+from driveid.identify.free_decay.logdec import estimate_log_decrement, estimate_log_decrement_thesis
 from driveid.io import Record
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
 
@@ -150,7 +150,7 @@ def test_errors_name_the_problem():
 @pytest.mark.parametrize("zetas", [(0.05, 0.025), (0.6, 0.9), (1e-4, 2e-4), (0.999, 0.5)])
 def test_vectorised_peak_recursion_equals_the_step_by_step_recursion(zetas):
     # reference: the recursion (2.168) one peak at a time, as written in the thesis
-    from driveid.identify.logdec import _ratio, peak_recursion
+    from driveid.identify.free_decay.logdec import _ratio, peak_recursion
 
     rng = np.random.default_rng(7)
     directions = np.where(rng.random(5000) < 0.5, 1, -1)

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, RecordError
-from driveid.identify.idim import estimate_idim
-from driveid.identify.loops import (
+from driveid.identify.forced.loops import (
     estimate_backlash_loop,
     estimate_presliding_loop,
     loop_branches,
 )
+from driveid.identify.friction.idim import estimate_idim
 from driveid.io.record import Record
 from driveid.models.dynamic_friction import LuGreParams
 from driveid.sim import BacklashLink, BodyParams, DriveParams, PDFeedback, simulate_drive

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import ParameterError, RecordError
-from driveid.identify.online import chunks_of, forgetting_factor, track_friction
+from driveid.identify.friction.online import chunks_of, forgetting_factor, track_friction
 from driveid.io.record import Record
 
 # Truth of the drifting drive (rotational, SI): Coulomb friction rises by 30 % with time

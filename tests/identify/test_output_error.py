@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError, RecordWarning
-from driveid.identify._free_response import kinetic_stop_count, response
 from driveid.identify.crlb import free_decay_crlb
-from driveid.identify.output_error import detect_quantum, estimate_output_error
+from driveid.identify.free_decay._free_response import kinetic_stop_count, response
+from driveid.identify.free_decay.output_error import detect_quantum, estimate_output_error
 from driveid.io.record import Record
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
 
@@ -171,7 +171,7 @@ def test_bad_arguments_are_refused():
 
 def test_decimated_search_gives_the_full_fit(monkeypatch):
     """Long records search the stop count on a decimated copy; the final fit uses all samples."""
-    import driveid.identify.output_error as oe
+    import driveid.identify.free_decay.output_error as oe
 
     rec = measure(_decay(), noise_std=0.01, rng=6)
     full = estimate_output_error(rec, mass=1.0)
@@ -202,7 +202,7 @@ def test_encoder_offset_warns_only_when_it_makes_friction_push():
 def test_long_records_are_fitted_on_every_kth_sample_with_honest_errors(monkeypatch):
     # the memory bound of issue 12, forced on a short record: 4x fewer samples -> the same
     # estimate within its errors, and errors about sqrt(4) = 2x those of the full fit
-    import driveid.identify.output_error as oe
+    import driveid.identify.free_decay.output_error as oe
 
     rec = _decay(fs=1000.0, duration=20.0, x0=1.0)
     noisy = Record(t=rec.t, x=rec.x + np.random.default_rng(3).normal(0, 1e-3, rec.n))

@@ -11,8 +11,8 @@ import pytest
 from scipy.optimize import root
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify.logdec import estimate_log_decrement
-from driveid.identify.pho import (
+from driveid.identify.free_decay.logdec import estimate_log_decrement
+from driveid.identify.pho.peaks import (
     PHORun,
     delay_factors,
     delay_factors_thesis,

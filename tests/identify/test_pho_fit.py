@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.estimate import Estimate, Parameter
-from driveid.identify.pho_fit import estimate_pho_output_error
+from driveid.identify.core.estimate import Estimate, Parameter
+from driveid.identify.pho.pho_fit import estimate_pho_output_error
 from driveid.io.record import Record
 from driveid.sim import simulate_drive
 from driveid.sim.drive import BodyParams, DriveParams, PDFeedback

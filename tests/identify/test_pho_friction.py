@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify.logdec import estimate_log_decrement
-from driveid.identify.pho import (
+from driveid.identify.free_decay.logdec import estimate_log_decrement
+from driveid.identify.pho.peaks import (
     _mean_offset_gain,
     estimate_pho_records,
     pho_peaks,

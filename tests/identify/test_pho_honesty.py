@@ -14,8 +14,8 @@ import pytest
 from scipy.signal import lfilter
 
 from driveid.errors import ParameterError
-from driveid.identify import _pho_fit_core as core
-from driveid.identify.pho_fit import estimate_pho_output_error
+from driveid.identify.pho import _pho_fit_core as core
+from driveid.identify.pho.pho_fit import estimate_pho_output_error
 from driveid.io.record import Record
 from driveid.sim import simulate_drive
 from driveid.sim.drive import BodyParams, DriveParams, PDFeedback

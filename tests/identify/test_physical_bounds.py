@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from driveid.identify._plausibility import check_plausibility
-from driveid.identify.hilbert import estimate_envelope_damping, estimate_hilbert
-from driveid.identify.loops import estimate_backlash_loop
-from driveid.identify.static_tests import estimate_backlash_stiffness
+from driveid.identify.core._plausibility import check_plausibility
+from driveid.identify.forced.loops import estimate_backlash_loop
+from driveid.identify.free_decay.hilbert import estimate_envelope_damping, estimate_hilbert
+from driveid.identify.friction.static_tests import estimate_backlash_stiffness
 from driveid.io.record import Record
 
 from .test_loops import _lugre_loop
@@ -94,7 +94,7 @@ def test_walk_estimators_on_adversarial_records():
     (0.01, 0.004, False),  # 2.5 standard errors above 0: fine
 ])
 def test_every_bounded_name_is_checked(value, stderr, warned):
-    from driveid.identify.estimate import Estimate, Parameter
+    from driveid.identify.core.estimate import Estimate, Parameter
 
     for name in GAP + DAMPING + SPRING + ("zeta_2", "K_1"):  # numbered modes too
         est = check_plausibility(Estimate("demo", {name: Parameter(value, stderr, "u")}))
@@ -122,7 +122,7 @@ def test_strict_turns_a_held_gap_into_exit_2(tmp_path):
 
 
 def test_forced_fit_holds_a_negative_stiffness_at_zero():
-    from driveid.identify.forced import estimate_forced_response
+    from driveid.identify.forced.forced import estimate_forced_response
 
     # a free axis (K = 0) driven far above any resonance: the unconstrained K scatters
     # about 0; with noise it comes out negative for some seed, and is then held and said

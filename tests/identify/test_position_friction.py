@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.position_friction import (
+from driveid.identify.friction.position_friction import (
     estimate_position_friction,
     false_alarm_probability,
 )

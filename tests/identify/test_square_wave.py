@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, RecordError
-from driveid.identify.square_wave import estimate_square_wave
+from driveid.identify.friction.square_wave import estimate_square_wave
 from driveid.io.record import Record
 from driveid.signal.excitation import square_wave
 from driveid.sim import BodyParams, DriveParams, simulate_drive

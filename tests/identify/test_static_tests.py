@@ -1,4 +1,4 @@
-"""Tests of driveid.identify.static_tests on synthetic data with closed-form truth."""
+"""Tests of driveid.identify.friction.static_tests on synthetic data with closed-form truth."""
 
 import math
 
@@ -7,7 +7,7 @@ import pytest
 from scipy.optimize import brentq
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.static_tests import (
+from driveid.identify.friction.static_tests import (
     estimate_backlash_stiffness,
     estimate_breakaway,
     estimate_rising_friction,

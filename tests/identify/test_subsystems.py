@@ -7,8 +7,8 @@ import math
 import pytest
 
 from driveid.errors import ConfigError
-from driveid.identify.estimate import Estimate, Parameter
-from driveid.identify.subsystems import estimate_subsystems, subsystem_differences
+from driveid.identify.core.estimate import Estimate, Parameter
+from driveid.identify.drive.subsystems import estimate_subsystems, subsystem_differences
 
 
 def _section(j, se):

@@ -3,7 +3,7 @@
 Truth is independent of the estimator: the drive's state matrix is written out here, its
 resonance is the eigenvalue pair of that matrix, and the record is simulated by
 ``scipy.signal.cont2discrete`` (zero-order hold) and ``dlsim``, not by
-:mod:`driveid.identify.transfer_models`.
+:mod:`driveid.identify.forced.transfer_models`.
 """
 
 import math
@@ -13,7 +13,7 @@ import pytest
 from scipy.signal import cont2discrete, dlsim, lfilter
 
 from driveid.errors import ConfigError, ParameterError, RecordError
-from driveid.identify.transfer import estimate_transfer, to_control, transfer_function
+from driveid.identify.forced.transfer import estimate_transfer, to_control, transfer_function
 from driveid.io import Record
 from driveid.signal.excitation import multisine, prbs
 
@@ -70,7 +70,7 @@ def test_two_mass_resonance_of_the_hand_written_matrix_is_the_closed_form():
 
 @pytest.mark.parametrize("side", ["motor", "load"])
 def test_two_mass_start_inverts_the_transfer_coefficients_exactly(side):
-    from driveid.identify.transfer import _two_mass_from_coefficients
+    from driveid.identify.forced.transfer import _two_mass_from_coefficients
 
     A, B, C = _matrices(side=side)
     values = _two_mass_from_coefficients(A, B, C, side, "speed")
@@ -211,6 +211,6 @@ def test_errors():
     with pytest.raises(ParameterError, match="order"):
         estimate_transfer(rec, order=0)
     with pytest.raises(ParameterError, match="carries no transfer function"):
-        from driveid.identify.estimate import Estimate
+        from driveid.identify.core.estimate import Estimate
 
         transfer_function(Estimate("logdec-lsq", {}))

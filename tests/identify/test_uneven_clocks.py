@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from driveid.errors import RecordWarning
-from driveid.identify.breakaway import estimate_breakaway_sliding
-from driveid.identify.friction_map import binned_points, estimate_friction_map
-from driveid.identify.loops import estimate_backlash_loop
+from driveid.identify.forced.loops import estimate_backlash_loop
+from driveid.identify.friction.breakaway import estimate_breakaway_sliding
+from driveid.identify.friction.friction_map import binned_points, estimate_friction_map
 from driveid.io.record import Record
 
 from .test_loops import backlash_test  # noqa: F401  (fixture)

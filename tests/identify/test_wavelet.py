@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from driveid.errors import IdentificationError, ParameterError, RecordError
-from driveid.identify.wavelet import estimate_wavelet, morlet_transform, scalogram
+from driveid.identify.free_decay.wavelet import estimate_wavelet, morlet_transform, scalogram
 from driveid.io.record import Record
 
 FS = 1000.0  # sampling rate [Hz]: >= 80 samples per period of every mode below

@@ -192,7 +192,7 @@ def test_sign_magnitude_register_decoded_or_flagged(tmp_path):
 
 
 def test_reading_options_are_kept_for_reuse(tmp_path):
-    from driveid.identify.estimate import inputs_of
+    from driveid.identify.core.estimate import inputs_of
 
     path = write_robot_log(tmp_path)
     rec = read_record(path, columns={"x": "q2"}, units={"x": "rad"}, max_jitter=None)

@@ -13,8 +13,8 @@ import warnings
 import numpy as np
 import pytest
 
-from driveid.identify.logdec import estimate_log_decrement
-from driveid.identify.output_error import estimate_output_error
+from driveid.identify.free_decay.logdec import estimate_log_decrement
+from driveid.identify.free_decay.output_error import estimate_output_error
 from driveid.io import Record, read_record, write_record
 
 N = 600_000

@@ -356,7 +356,7 @@ def test_metadata_pair_above_a_single_unnamed_column(tmp_path):
 
 @pytest.mark.shared_data
 def test_rotary_pendulum_records_read_and_fit(shared_data):
-    from driveid.identify.output_error import estimate_output_error
+    from driveid.identify.free_decay.output_error import estimate_output_error
     from driveid.io import read_record
 
     folder = shared_data / "rotary_pendulum_free_swing"

@@ -13,7 +13,7 @@ from scipy.stats import norm
 
 from driveid.commands.report import report_command
 from driveid.errors import OverwriteError
-from driveid.identify.estimate import Estimate, Parameter
+from driveid.identify.core.estimate import Estimate, Parameter
 from driveid.report.figures import pyplot
 from driveid.report.html import Z95, render_report, write_report
 

@@ -29,7 +29,7 @@ import sqlalchemy as sa
 from driveid._json import to_jsonable
 from driveid.catalog import _schema as S
 from driveid.errors import ConfigError, FileFormatError
-from driveid.identify.estimate import Parameter
+from driveid.identify.core.estimate import Parameter
 from driveid.io.reading import file_sha256
 
 __all__ = [

@@ -3,7 +3,7 @@
 ``@output_options`` adds ``--json``, ``--series``, ``--figure PATH``, ``--report PATH``,
 ``--overwrite``, ``--strict`` and ``--quiet`` and passes one :class:`OutputOptions` to the
 callback as ``output_opts``. :func:`emit` prints the estimate (table or the result schema of
-:meth:`driveid.identify.estimate.Estimate.to_dict`), writes the figure and report, and prints
+:meth:`driveid.identify.core.estimate.Estimate.to_dict`), writes the figure and report, and prints
 the estimate's warnings on stderr (``--strict``: a warning is an error, exit 2).
 """
 
@@ -93,7 +93,7 @@ def emit(est: Any, opts: OutputOptions, *, records: Sequence[Any] = (),
     """Show an estimate as the options ask.
 
     The estimate is first completed: plausibility guards
-    (:func:`driveid.identify._plausibility.check_plausibility`), the warnings raised while
+    (:func:`driveid.identify.core._plausibility.check_plausibility`), the warnings raised while
     reading its records, and their provenance (``inputs``) when it has none.
 
     Parameters
@@ -125,7 +125,7 @@ def emit(est: Any, opts: OutputOptions, *, records: Sequence[Any] = (),
 
     from driveid.commands import captured_warnings, mark_printed
     from driveid.errors import IdentificationError
-    from driveid.identify._plausibility import check_plausibility
+    from driveid.identify.core._plausibility import check_plausibility
 
     est = check_plausibility(est)
     est = est.with_warnings(*captured_warnings())

@@ -83,7 +83,7 @@ def simulate_contour_command(config, out, compensate, seed, as_json, overwrite):
     """Circular contour test (ball bar) of two feed axes under PID control."""
     import dataclasses
 
-    from driveid.identify.contour import compensation_from_estimate
+    from driveid.identify.contour.circle import compensation_from_estimate
     from driveid.io import ensure_writable
     from driveid.sim.contour import simulate_contour
     from driveid.sim.contour_config import load_contour_config
@@ -156,7 +156,7 @@ def simulate_contour_command(config, out, compensate, seed, as_json, overwrite):
 def identify_contour_command(file, config, min_speed, no_preview, record_opts, output_opts):
     """Circle test: each axis's Coulomb, viscous friction and backlash gap."""
     from driveid.commands._record_options import split_window_spec
-    from driveid.identify.contour import estimate_contour, read_contour_record
+    from driveid.identify.contour.circle import estimate_contour, read_contour_record
     from driveid.sim.contour_config import load_contour_config
 
     if record_opts.columns:

@@ -22,11 +22,12 @@ def fleet_group():
 
 @fleet_group.command("identify")
 @click.argument("patterns", nargs=-1, required=True)
-@click.option("--method", type=click.Choice(["output-error", "logdec"]),
+@click.option("--method", type=click.Choice(["output-error", "logdec", "auto"]),
               default="output-error", show_default=True,
               help="Estimator run on every record: output-error, the whole-record fit that "
                    "'identify logdec' runs (near the Cramér-Rao bound); logdec, the peak log "
-                   "decrement ('identify logdec --method peaks').")
+                   "decrement ('identify logdec --method peaks'); auto, what 'identify auto' "
+                   "chooses for each record's test shape.")
 @click.option("--mass", "--J", "mass", type=float, default=None,
               help="Known mass or inertia J [kg or kg·m²].")
 @click.option("--stiffness", "--K", "stiffness", type=float, default=None,

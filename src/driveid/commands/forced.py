@@ -38,7 +38,7 @@ def forced_command(files, omega, K_known, friction, x_ref, pho, record_opts, out
     or feedback, fk_delta without --x-ref on a spring) are shown as nan (JSON null) and
     listed in the diagnostics under not_identified.
     """
-    from driveid.identify.forced import estimate_forced_pho, estimate_forced_response
+    from driveid.identify.forced.forced import estimate_forced_pho, estimate_forced_response
 
     if x_ref is not None and not friction:
         raise click.UsageError("--x-ref is used by the friction fit only; add --friction")
@@ -65,7 +65,7 @@ def forced_command(files, omega, K_known, friction, x_ref, pho, record_opts, out
 @clean_errors
 def envelope_command(file, mass, min_snr, record_opts, output_opts):
     """Viscous and Coulomb damping from the Hilbert envelope of a free decay in FILE."""
-    from driveid.identify.hilbert import estimate_envelope_damping
+    from driveid.identify.free_decay.hilbert import estimate_envelope_damping
 
     record = record_opts.read(file)
     est = estimate_envelope_damping(record, mass=mass, min_snr=min_snr)

@@ -105,7 +105,7 @@ def idim_command(files, validate_file, model, cutoff_hz, decimate, offset, load_
     Several FILES are fitted in one least-squares problem (each filtered on its own).
     """
     from driveid.errors import ParameterError
-    from driveid.identify.idim import estimate_idim, validate_idim
+    from driveid.identify.friction.idim import estimate_idim, validate_idim
     from driveid.report.friction_figures import plot_idim
 
     opts = _legacy(record_opts, force_column, force_scale, units)
@@ -169,7 +169,7 @@ def _numbers(text: str, option: str) -> list[float]:
 
 def _simulate_emps(est: Any, record: Any, path: Path) -> dict[str, float]:
     from driveid.errors import FileFormatError
-    from driveid.identify.idim import simulate_idim_model
+    from driveid.identify.friction.idim import simulate_idim_model
 
     if path.suffix.lower() != ".mat":
         raise FileFormatError(f"--simulate reads the EMPS loop variables from a .mat file; "
@@ -220,7 +220,7 @@ def friction_map_command(files, models, rel_tol, min_samples, min_speed, max_spe
     FILES are records (each may carry a window, run.csv@2:30), or folders of TRO 2021
     EPOS exports (e.g. screw_drive_friction_TRO2021/driveNo1/steady_state/0.096kg).
     """
-    from driveid.identify.friction_map import (
+    from driveid.identify.friction.friction_map import (
         binned_points,
         estimate_friction_map,
         read_tro2021_steady_state,

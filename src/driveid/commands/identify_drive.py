@@ -29,78 +29,19 @@ def _pairs(values, option: str) -> dict[str, str]:
 
 def read_drive_records(files, record_opts, *, channels: dict[str, str] | None = None,
                        input_column: str | None = None, n_bodies: int):
-    """Read drive records (channels ``x1``, ``v1`` ... and the input) with the reading options.
+    """Read drive records, ``PATH@T0:T1`` windows and the reading options applied.
 
-    Parameters
-    ----------
-    files : sequence of str
-        ``PATH`` or ``PATH@T0:T1`` each.
-    record_opts : RecordOptions
-        The shared reading options (window, scale, units, jitter, encoder counts).
-    channels : dict of str to str, optional
-        Channel (``x2``) -> file column, for columns not named as ``simulate drive`` writes.
-    input_column : str, optional
-        File column of the input torque or force (default ``command`` or ``u`` if present).
-    n_bodies : int
-        Bodies of the drive (channels of other bodies are ignored).
-
-    Returns
-    -------
-    list of DriveRecord
-        One per file.
-
-    Raises
-    ------
-    FileFormatError
-        If a file has no channel of the drive.
+    See :func:`driveid.identify.drive.records.read_drive_record`; ``files`` are ``PATH`` or
+    ``PATH@T0:T1`` each and ``record_opts`` the shared :class:`RecordOptions`.
     """
-    from driveid.errors import FileFormatError
-    from driveid.identify._drive_model import DriveRecord
-    from driveid.io import read_record
-    from driveid.io.tables import read_table
+    from driveid.identify.drive.records import read_drive_record as read
 
-    channels = dict(channels or {})
-    out = []
-    for spec in files:
-        path, window = split_window_spec(spec)
-        table = read_table(path)
-        names = set(table.columns)
-        mapping = {}
-        for i in range(1, n_bodies + 1):
-            for kind in ("x", "v"):
-                ch = f"{kind}{i}"
-                column = channels.get(ch, ch if ch in names else None)
-                if column is not None:
-                    mapping[ch] = column
-        ucol = input_column or next((c for c in ("command", "u") if c in names), None)
-        bodies = sorted({int(ch[1:]) for ch in mapping})
-        if not any(ch.startswith("x") for ch in mapping):
-            raise FileFormatError(f"{path.name}: no position channel of the drive (x1 ... "
-                                  f"x{n_bodies}); name one with --channel x1=COLUMN; got "
-                                  f"columns {sorted(names)}")
-        kwargs = record_opts.read_kwargs(None if window == (None, None) else window)
-        chans, t, u, meta = {}, None, None, {}
-        for i in bodies:
-            cols = {}
-            if record_opts.columns.get("t") is not None:
-                cols["t"] = record_opts.columns["t"]
-            x_col = mapping.get(f"x{i}")
-            if x_col is None:
-                continue  # a velocity alone is read with its body's position only
-            cols["x"] = x_col
-            if f"v{i}" in mapping:
-                cols["v"] = mapping[f"v{i}"]
-            if ucol is not None:
-                cols["u"] = ucol
-            rec = read_record(path, **{**kwargs, "columns": cols})
-            t, meta = rec.t, dict(rec.meta)
-            chans[f"x{i}"] = rec.x
-            if rec.v is not None and "v" in cols:
-                chans[f"v{i}"] = rec.v
-            if rec.u is not None and ucol is not None:
-                u = rec.u
-        out.append(DriveRecord(t=t, channels=chans, u=u, meta=meta))
-    return out
+    specs = [split_window_spec(spec) for spec in files]
+    return [read(path, read_kwargs=record_opts.read_kwargs(None if window == (None, None)
+                                                            else window),
+                 time_column=record_opts.columns.get("t"), channels=channels,
+                 input_column=input_column, n_bodies=n_bodies)
+            for path, window in specs]
 
 
 @click.command("drive")
@@ -126,7 +67,7 @@ def read_drive_records(files, record_opts, *, channels: dict[str, str] | None = 
 def drive_command(config, files, estimate, channel, input_column, input_body, segment, white,
                   model_out, record_opts, output_opts):
     """Fit the lumped drive of CONFIG (TOML) to motor and load records."""
-    from driveid.identify.drive_fit import estimate_drive
+    from driveid.identify.drive.drive_fit import estimate_drive
     from driveid.io.safe_write import atomic_write_text
     from driveid.sim.config import load_drive_config
 
@@ -160,7 +101,7 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
 @clean_errors
 def subsystems_command(manifest, output_opts):
     """Fit sections A, A+B, A+B+C; each part as their difference."""
-    from driveid.identify.subsystems import estimate_subsystems
+    from driveid.identify.drive.subsystems import estimate_subsystems
 
     result = estimate_subsystems(manifest)
     emit(result, output_opts, header="sections fitted in sequence; parts as differences "

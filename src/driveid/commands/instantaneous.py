@@ -39,7 +39,7 @@ def _checked(est, fit, record, check_window):
     """Return ``est``, compared with a refit on the first 80 % of the record if asked."""
     if not check_window:
         return est
-    from driveid.identify._plausibility import check_refit_stability
+    from driveid.identify.core._plausibility import check_refit_stability
 
     shorter = record.crop(None, record.t[0] + 0.8 * record.duration)
     return check_refit_stability(est, fit(shorter),
@@ -62,7 +62,7 @@ def hilbert_command(file, mass, check_window, backbone_figure, record_opts, outp
     constant) under data_used.backbone_fit; --json --series adds the time series t,
     omega0, zeta, amplitude and the binned backbone under "data_used".
     """
-    from driveid.identify.hilbert import estimate_hilbert
+    from driveid.identify.free_decay.hilbert import estimate_hilbert
 
     record = record_opts.read(file).resampled_uniform(purpose="the Hilbert transform")
     est = _checked(estimate_hilbert(record, mass=mass),
@@ -103,7 +103,7 @@ def wavelet_command(file, modes, omega_c, mass, check_window, backbone_figure, r
     backbone_verdict_k for several); --json --series adds each mode's time series under
     "data_used". --backbone-figure draws the first mode's backbone.
     """
-    from driveid.identify.wavelet import estimate_wavelet
+    from driveid.identify.free_decay.wavelet import estimate_wavelet
 
     record = record_opts.read(file).resampled_uniform(purpose="the wavelet transform")
     def fit(rec):

@@ -110,7 +110,7 @@ def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, b
 
         def fit(recs):
             from driveid.commands._progress import progress_bar
-            from driveid.identify.output_error import estimate_output_error
+            from driveid.identify.free_decay.output_error import estimate_output_error
 
             with progress_bar(bootstrap, "bootstrap refits (encoder records)",
                               quiet=output_opts.quiet) as bar:
@@ -127,7 +127,7 @@ def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, b
         records = [r.resampled_uniform(purpose="peak refinement") for r in raw]
 
         def fit(recs):
-            from driveid.identify.logdec import (
+            from driveid.identify.free_decay.logdec import (
                 estimate_log_decrement,
                 estimate_log_decrement_thesis,
             )
@@ -144,7 +144,7 @@ def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, b
 
     est = fit(records)
     if check_window:
-        from driveid.identify._plausibility import check_refit_stability
+        from driveid.identify.core._plausibility import check_refit_stability
 
         shorter = [r.crop(None, r.t[0] + 0.8 * r.duration) for r in records]
         est = check_refit_stability(est, fit(shorter),

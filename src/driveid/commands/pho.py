@@ -293,7 +293,7 @@ def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_out
     if delay is not None and not (math.isfinite(delay) and delay >= 0):
         raise click.BadParameter(f"must be >= 0 [s]; got {delay}", param_hint="--delay")
     K_known = manifest.K if K is None else K
-    from driveid.identify.pho import estimate_pho_records
+    from driveid.identify.pho.peaks import estimate_pho_records
 
     q = parse_quantisation(quantisation)
     n_samples = sum(r.n for r in records)
@@ -311,7 +311,7 @@ def pho_analyse_command(path, delay, estimate_delay, uncompensated, K, allow_out
             f"(slow above {OE_MAX_SAMPLES:,}) or crop the runs with --t-end")
     if use_oe:
         from driveid.errors import IdentificationError, RecordError
-        from driveid.identify.pho_fit import estimate_pho_output_error
+        from driveid.identify.pho.pho_fit import estimate_pho_output_error
 
         try:
             with progress_bar(bootstrap, "bootstrap (encoder records)",

@@ -30,7 +30,7 @@ __all__ = ["breakaway_command", "loop_command", "static_stiffness_command", "ste
 def breakaway_command(files, v_break, window, x_creep, min_force, dwell_fit, record_opts,
                       output_opts):
     """Breakaway force by gross sliding from force ramps in one or several FILES."""
-    from driveid.identify.breakaway import (
+    from driveid.identify.friction.breakaway import (
         estimate_breakaway_sliding,
         rising_friction_from_breakaways,
     )
@@ -70,7 +70,7 @@ def breakaway_command(files, v_break, window, x_creep, min_force, dwell_fit, rec
 @clean_errors
 def loop_command(file, kind, threshold, lowpass_hz, record_opts, output_opts):
     """Presliding stiffness or backlash gap from a force–displacement loop in FILE."""
-    from driveid.identify.loops import estimate_backlash_loop, estimate_presliding_loop
+    from driveid.identify.forced.loops import estimate_backlash_loop, estimate_presliding_loop
     from driveid.report.loop_figures import plot_loop
 
     record = record_opts.read(file)
@@ -98,7 +98,7 @@ def static_stiffness_command(file, backlash, x_ref, record_opts, output_opts):
     deflections (pass --fs 1 for a table without a time column).
     """
     from driveid.errors import RecordError
-    from driveid.identify.static_tests import (
+    from driveid.identify.friction.static_tests import (
         estimate_backlash_stiffness,
         estimate_static_stiffness,
     )
@@ -142,7 +142,7 @@ def _deflection_figure(est, record):
 @clean_errors
 def step_command(file, band, settle_fraction, record_opts, output_opts):
     """ζ and ω0 from the steps of a DC-biased square-wave test in FILE (command in u)."""
-    from driveid.identify.static_tests import estimate_step_response
+    from driveid.identify.friction.static_tests import estimate_step_response
 
     record = record_opts.read(file, position=False)  # a speed-only drive log will do
     est = estimate_step_response(record, band=band, settle_fraction=settle_fraction)

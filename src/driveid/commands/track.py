@@ -9,7 +9,7 @@ import click
 from driveid.commands import clean_errors
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
-from driveid.identify.online import chunks_of, track_friction
+from driveid.identify.friction.online import chunks_of, track_friction
 
 __all__ = ["track_command"]
 

@@ -126,7 +126,7 @@ def _read_signals(spec: str, *, input_col: str, output_col: str, quantity: str,
 
 
 def _fixed(fix: tuple[str, ...], free: tuple[str, ...]) -> dict[str, float]:
-    from driveid.identify.transfer_models import TWO_MASS_DEFAULT_FIXED, TWO_MASS_PARAMETERS
+    from driveid.identify.forced.transfer_models import TWO_MASS_DEFAULT_FIXED, TWO_MASS_PARAMETERS
 
     fixed = {k: v for k, v in TWO_MASS_DEFAULT_FIXED.items() if k not in free}
     for name in free:
@@ -202,7 +202,7 @@ def transfer_command(file, input_col, output_col, output_quantity, time_col, fs,
     standard errors; resonances as omega0_1, zeta_1, ... The report shows the Bode plot of
     the model over the data's FRF and coherence.
     """
-    from driveid.identify.transfer import estimate_transfer
+    from driveid.identify.forced.transfer import estimate_transfer
 
     if structure != "two-mass" and (fix or free):
         raise click.UsageError("--fix/--free are for --structure two-mass")

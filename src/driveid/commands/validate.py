@@ -19,7 +19,7 @@ SCHEMA = "driveid-validate/1"
 
 
 def _load_estimate(path: Path):
-    from driveid.identify.estimate import Estimate
+    from driveid.identify.core.estimate import Estimate
 
     try:
         data = json.loads(path.read_text(encoding="utf-8"))

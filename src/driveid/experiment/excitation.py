@@ -5,8 +5,8 @@ The contract (:class:`ExcitablePlant`)
 A plant applies an external force or torque ``u(t)`` [N·m or N], sampled at the
 excitation's ``fs``, starting at rest, and returns a :class:`~driveid.io.record.Record` with
 ``t`` [s], the measured ``x`` [rad or m], ``u`` the *external* input (under feedback: the
-excitation only, as :func:`driveid.identify.forced.estimate_forced_pho` and
-:func:`driveid.identify.frf.estimate_frf` expect) and ``meta`` with ``plant``, ``units``,
+excitation only, as :func:`driveid.identify.forced.forced.estimate_forced_pho` and
+:func:`driveid.identify.forced.frf.estimate_frf` expect) and ``meta`` with ``plant``, ``units``,
 ``P``, ``D``, ``delay`` (0 without feedback).
 
 :class:`SimulatedExcitationPlant` implements it with :func:`driveid.sim.simulate_drive`

@@ -57,7 +57,7 @@ from driveid.signal.envelope import noise_std
 from driveid.signal.peaks import find_oscillation_peaks
 
 #: Default fewest peaks of an accepted run: what the log decrement of the analysis needs
-#: (``driveid.identify.logdec.MIN_PEAKS``; experiment does not import identify).
+#: (``driveid.identify.free_decay.logdec.MIN_PEAKS``; experiment does not import identify).
 MIN_DECAY_PEAKS = 5
 #: Most runs a campaign plans without an explicit ``max_runs`` (CLI ``--max-runs``): the
 #: thesis's largest campaign had a few hundred; 10 000 runs of 5 s are 14 h of testing.

@@ -35,7 +35,7 @@ import numpy as np
 
 from driveid.errors import DriveIdError, IdentificationError, ParameterError
 from driveid.identify._shape import ShapeVerdict, classify_record
-from driveid.identify.estimate import Estimate
+from driveid.identify.core.estimate import Estimate
 from driveid.io.record import Record
 
 __all__ = ["identify_auto", "NEXT_TEST"]
@@ -63,7 +63,7 @@ NEXT_TEST = {
 
 def _candidates(shape: str, records: list[Record], mass, stiffness) -> list[tuple[str, Callable]]:
     """Return ``(name, thunk)`` of the estimators that apply to a shape, best first."""
-    from driveid.identify import hilbert, logdec, output_error
+    from driveid.identify.free_decay import hilbert, logdec, output_error
 
     first = records[0]
     if shape == "free-decay":
@@ -77,23 +77,23 @@ def _candidates(shape: str, records: list[Record], mass, stiffness) -> list[tupl
                 mass=mass, stiffness=stiffness)),
         ]
     if shape == "pho":
-        from driveid.identify.pho import estimate_pho_records
-        from driveid.identify.pho_fit import estimate_pho_output_error
+        from driveid.identify.pho.peaks import estimate_pho_records
+        from driveid.identify.pho.pho_fit import estimate_pho_output_error
 
         return [("pho-output-error", lambda: estimate_pho_output_error(records)),
                 ("pho-peaks", lambda: estimate_pho_records(records))]
     if shape == "sine":
-        from driveid.identify.forced import estimate_forced_response
+        from driveid.identify.forced.forced import estimate_forced_response
 
         return [("forced", lambda: estimate_forced_response(records, K_known=stiffness))]
     if shape == "step":
-        from driveid.identify.square_wave import estimate_square_wave
-        from driveid.identify.static_tests import estimate_step_response
+        from driveid.identify.friction.square_wave import estimate_square_wave
+        from driveid.identify.friction.static_tests import estimate_step_response
 
         return [("square-wave", lambda: estimate_square_wave(records)),
                 ("step", lambda: estimate_step_response(first))]
     if shape == "ramp":
-        from driveid.identify.breakaway import estimate_breakaway_sliding
+        from driveid.identify.friction.breakaway import estimate_breakaway_sliding
 
         # a noisy force crosses zero at rest: ramps that stay below a third of the top
         # force are noise, not ramps
@@ -101,19 +101,19 @@ def _candidates(shape: str, records: list[Record], mass, stiffness) -> list[tupl
         return [("breakaway", lambda: estimate_breakaway_sliding(
             records, v_break=_break_speed(records), min_force=top / 3))]
     if shape == "plateaus":
-        from driveid.identify.friction_map import estimate_friction_map
+        from driveid.identify.friction.friction_map import estimate_friction_map
 
         return [("friction-map", lambda: estimate_friction_map(
             records, models=("coulomb_viscous",)).estimate)]
     if shape in ("broadband", "operating"):
-        from driveid.identify.idim import estimate_idim
+        from driveid.identify.friction.idim import estimate_idim
 
         cutoff = _idim_cutoff(records)
         out = [("idim", lambda: estimate_idim(records, cutoff_hz=cutoff)),
                ("idim+spring", lambda: estimate_idim(records, cutoff_hz=cutoff,
                                                      regressors=("x",)))]
         if shape == "operating":
-            from driveid.identify.friction_map import estimate_friction_map
+            from driveid.identify.friction.friction_map import estimate_friction_map
 
             out.append(("friction-map", lambda: estimate_friction_map(
                 records, models=("coulomb_viscous",)).estimate))

@@ -2,7 +2,7 @@ r"""Cramér–Rao bounds of free-decay parameters, and experiment planning from 
 
 For a record ``y_i = x(t_i; q) + n_i`` with white Gaussian noise of standard deviation
 ``σ_n``, the Fisher information is ``F = JᵀJ/σ_n²`` with ``J = ∂x/∂q`` the Jacobian of the
-exact piecewise free response (the same one :func:`driveid.identify.output_error.
+exact piecewise free response (the same one :func:`driveid.identify.free_decay.output_error.
 estimate_output_error` fits; de Marchi 1998, Eqs. 2.139-2.143, 2.156, 2.168). Any unbiased
 estimator's covariance is at least ``F⁻¹``; the physical parameters follow by the delta
 method (thesis 2.145, 2.150). Nuisance unknowns (release position and time, and a drift
@@ -24,8 +24,8 @@ import numpy as np
 from scipy.signal import lfilter
 
 from driveid.errors import IdentificationError, ParameterError
-from driveid.identify._free_response import GLOBAL_NAMES, kinetic_stop_count, response
-from driveid.identify.output_error import _physical_jacobian, physical_parameters
+from driveid.identify.free_decay._free_response import GLOBAL_NAMES, kinetic_stop_count, response
+from driveid.identify.free_decay.output_error import _physical_jacobian, physical_parameters
 
 __all__ = ["drive_crlb", "free_decay_crlb", "required_duration"]
 
@@ -281,7 +281,7 @@ def drive_crlb(
     dict of str to float
         Bound standard deviation of each parameter, ``sqrt(diag((JᵀWJ)⁻¹))`` with ``J`` the
         central-difference Jacobian of the simulated channels at the truth
-        (:mod:`driveid.identify._drive_model`) and ``W = diag(1/σ_c²)``.
+        (:mod:`driveid.identify.drive._drive_model`) and ``W = diag(1/σ_c²)``.
 
     Raises
     ------
@@ -291,7 +291,7 @@ def drive_crlb(
     Examples
     --------
     >>> from driveid.sim import BodyParams, DriveParams
-    >>> from driveid.identify.drive_fit import DriveRecord
+    >>> from driveid.identify.drive.drive_fit import DriveRecord
     >>> drive = DriveParams(bodies=(BodyParams(J=0.01, c_mean=0.002, fk_mean=0.05),))
     >>> t = np.arange(2001) / 1000.0
     >>> rec = DriveRecord(t=t, channels={"x1": 0 * t}, u=0.2 * np.sin(9.4 * t))
@@ -299,7 +299,7 @@ def drive_crlb(
     >>> 0 < sd["body1.J"] / 0.01 < 1e-2
     True
     """
-    from driveid.identify._drive_model import DriveProblem, check_names, get_value
+    from driveid.identify.drive._drive_model import DriveProblem, check_names, get_value
 
     names = check_names(params, list(names))
     nb = params.n_bodies

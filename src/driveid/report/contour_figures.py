@@ -77,7 +77,7 @@ def plot_contour_estimate(estimate: Any, ax: Any = None) -> Any:
     Parameters
     ----------
     estimate : Estimate
-        From :func:`driveid.identify.contour.estimate_contour` with its series
+        From :func:`driveid.identify.contour.circle.estimate_contour` with its series
         (``radial_measured``, ``angle`` and, where computed, ``radial_simulated`` and the
         compensation preview ``radial_model_with``).
     ax : matplotlib polar Axes, optional

@@ -17,16 +17,16 @@ def plot_forced(estimate: Any) -> Any:
     Left: ``Re(H - z)`` [N·m/rad or N/m] against ω [rad/s] with the line ``K - Jω²``.
     Right: the equivalent damping ``Im(H - z)/ω`` [N·m·s/rad or N·s/m] against the velocity
     amplitude ``ωA`` [rad/s or m/s] with the model ``c_mean + 4 fk_mean/(π ωA)`` (the
-    describing function, :mod:`driveid.identify.forced_friction`) or the constant C.
+    describing function, :mod:`driveid.identify.forced.forced_friction`) or the constant C.
     ``H = R e^{jρ}`` is each run's dynamic stiffness (de Marchi 1998, Eq. 2.179) and
     ``z = (P + jωD) e^{-jωΔ}`` the delayed PD loop (zero for the open drive).
 
     Parameters
     ----------
     estimate : Estimate
-        From :func:`~driveid.identify.forced.estimate_forced_response`,
-        :func:`~driveid.identify.forced.estimate_forced_pho` or
-        :func:`~driveid.identify.forced_friction.estimate_forced_friction`.
+        From :func:`~driveid.identify.forced.forced.estimate_forced_response`,
+        :func:`~driveid.identify.forced.forced.estimate_forced_pho` or
+        :func:`~driveid.identify.forced.forced_friction.estimate_forced_friction`.
 
     Returns
     -------

@@ -21,7 +21,7 @@ def plot_friction_map(result: Any, *, ax: Any = None) -> Any:
     Parameters
     ----------
     result : FrictionMap
-        Result of :func:`driveid.identify.friction_map.estimate_friction_map`.
+        Result of :func:`driveid.identify.friction.friction_map.estimate_friction_map`.
     ax : matplotlib Axes, optional
         Where to draw; a new figure when omitted.
 
@@ -31,7 +31,7 @@ def plot_friction_map(result: Any, *, ax: Any = None) -> Any:
         Friction force [N or N·m] against velocity [m/s or rad/s]; maps with an
         unidentifiable parameter on a branch are not drawn on that branch.
     """
-    from driveid.identify.friction_map import BRANCH_MAPS
+    from driveid.identify.friction.friction_map import BRANCH_MAPS
 
     plt = pyplot()
     if ax is None:
@@ -82,9 +82,9 @@ def plot_idim(estimate: Any, validation: Any = None) -> Any:
     Parameters
     ----------
     estimate : Estimate
-        Result of :func:`driveid.identify.idim.estimate_idim`.
+        Result of :func:`driveid.identify.friction.idim.estimate_idim`.
     validation : IdimValidation, optional
-        Result of :func:`driveid.identify.idim.validate_idim`.
+        Result of :func:`driveid.identify.friction.idim.validate_idim`.
 
     Returns
     -------

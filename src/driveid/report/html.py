@@ -52,7 +52,7 @@ def render_report(estimates: Any, *, figures: Sequence[Any] = (),
     ----------
     estimates : Estimate, mapping, or sequence of them
         The results; a mapping is a ``driveid-result/1`` dict (``--json`` output), converted
-        with :meth:`driveid.identify.estimate.Estimate.from_dict`, whose ``command`` and
+        with :meth:`driveid.identify.core.estimate.Estimate.from_dict`, whose ``command`` and
         ``driveid`` version are shown under "How to reproduce".
     figures : sequence
         Figures of the method, shown with the first estimate: matplotlib figures (embedded
@@ -81,7 +81,7 @@ def render_report(estimates: Any, *, figures: Sequence[Any] = (),
 
     Examples
     --------
-    >>> from driveid.identify.estimate import Estimate, Parameter
+    >>> from driveid.identify.core.estimate import Estimate, Parameter
     >>> est = Estimate("logdec-lsq", {"K": Parameter(16.0, 0.01, "N·m/rad"),
     ...                               "J": Parameter(1.0, unit="kg·m²", fixed=True)})
     >>> html = render_report(est)
@@ -175,7 +175,7 @@ def load_results(paths: Sequence[str | Path]) -> list[Any]:
     import json
 
     from driveid.errors import FileFormatError
-    from driveid.identify.estimate import Estimate
+    from driveid.identify.core.estimate import Estimate
 
     results = []
     for path in paths:
@@ -205,7 +205,7 @@ def _as_list(estimates: Any) -> list[Any]:
 
 def _entry(item: Any, index: int) -> _Entry:
     from driveid import __version__
-    from driveid.identify.estimate import Estimate
+    from driveid.identify.core.estimate import Estimate
 
     command, version = None, __version__
     if isinstance(item, Mapping):
@@ -274,7 +274,7 @@ def _input_view(item: Mapping[str, Any]) -> dict[str, str]:
         for k, v in columns.items())
     reading = item.get("reading") or {}
     if reading:  # how the file was read, as the options that read it again (issue 26)
-        from driveid.commands._record_options import reading_as_cli
+        from driveid.io.reading_options import reading_as_cli
 
         cols = (cols + "; " if cols else "") + "read with " + reading_as_cli(reading)
     return {

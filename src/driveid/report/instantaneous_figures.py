@@ -17,8 +17,8 @@ def plot_backbone(estimate: Any, *, record: Any = None, mode: int = 0, ax: Any =
     Parameters
     ----------
     estimate : Estimate
-        Result of :func:`~driveid.identify.hilbert.estimate_hilbert` or
-        :func:`~driveid.identify.wavelet.estimate_wavelet`.
+        Result of :func:`~driveid.identify.free_decay.hilbert.estimate_hilbert` or
+        :func:`~driveid.identify.free_decay.wavelet.estimate_wavelet`.
     record : Record, optional
         Supplies the units of ``x`` and ``u`` for the axes.
     mode : int
@@ -35,7 +35,7 @@ def plot_backbone(estimate: Any, *, record: Any = None, mode: int = 0, ax: Any =
     -----
     Light line: the instantaneous samples; markers: the bin means; band: +-2 standard
     errors of the bins; dashed: the fit ``K0 + K2 A²``. The title gives the verdict and the
-    p-value of ``K2 = 0`` (:mod:`driveid.identify.backbone`).
+    p-value of ``K2 = 0`` (:mod:`driveid.identify.free_decay.backbone`).
     """
     d = estimate.data_used
     src = d["modes"][mode] if "modes" in d else d
@@ -78,7 +78,7 @@ def plot_hilbert(estimate: Any, *, record: Any = None) -> Any:
     Parameters
     ----------
     estimate : Estimate
-        Result of :func:`driveid.identify.hilbert.estimate_hilbert`.
+        Result of :func:`driveid.identify.free_decay.hilbert.estimate_hilbert`.
     record : Record, optional
         Supplies the unit of ``x`` for the axes.
 
@@ -124,7 +124,7 @@ def plot_wavelet(estimate: Any, *, record: Any = None) -> Any:
     Parameters
     ----------
     estimate : Estimate
-        Result of :func:`driveid.identify.wavelet.estimate_wavelet`.
+        Result of :func:`driveid.identify.free_decay.wavelet.estimate_wavelet`.
     record : Record, optional
         Supplies the unit of ``x`` for the colour bar.
 

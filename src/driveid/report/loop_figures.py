@@ -19,8 +19,8 @@ def plot_loop(estimate: Any, record: Any, *, ax: Any = None) -> Any:
     Parameters
     ----------
     estimate : Estimate
-        Result of :func:`driveid.identify.loops.estimate_presliding_loop` (Dahl branches
-        drawn from every reversal) or :func:`driveid.identify.loops.estimate_backlash_loop`
+        Result of :func:`driveid.identify.forced.loops.estimate_presliding_loop` (Dahl branches
+        drawn from every reversal) or :func:`driveid.identify.forced.loops.estimate_backlash_loop`
         (dead zone + contact lines).
     record : Record
         The loop test: displacement [m or rad], force [N or N·m].
@@ -74,7 +74,7 @@ def plot_breakaway(estimate: Any, records: Sequence[Any], *, ax: Any = None) -> 
     Parameters
     ----------
     estimate : Estimate
-        Result of :func:`driveid.identify.breakaway.estimate_breakaway_sliding`.
+        Result of :func:`driveid.identify.friction.breakaway.estimate_breakaway_sliding`.
     records : sequence of Record
         The records it was estimated from [s, N or N·m].
     ax : matplotlib Axes, optional

@@ -23,8 +23,8 @@ def plot_pho_campaign(estimate: Any) -> Any:
     Parameters
     ----------
     estimate : Estimate
-        Result of :func:`driveid.identify.pho.estimate_pho_campaign` or
-        :func:`driveid.identify.pho.estimate_pho_records`.
+        Result of :func:`driveid.identify.pho.peaks.estimate_pho_campaign` or
+        :func:`driveid.identify.pho.peaks.estimate_pho_records`.
 
     Returns
     -------
@@ -64,7 +64,7 @@ def plot_pho_fit(estimate: Any, records: Any) -> Any:
     Parameters
     ----------
     estimate : Estimate
-        From :func:`driveid.identify.pho_fit.estimate_pho_output_error` (its ``data_used``
+        From :func:`driveid.identify.pho.pho_fit.estimate_pho_output_error` (its ``data_used``
         holds ``run_samples``, ``fit_x`` [m or rad] and ``residual`` [m or rad]).
     records : sequence of Record
         The runs it was fitted to, in the same order [s; m or rad].

@@ -22,7 +22,7 @@ def plot_transfer(estimate: Any) -> Any:
     Parameters
     ----------
     estimate : Estimate
-        From :func:`driveid.identify.transfer.estimate_transfer` (in memory: the FRF and
+        From :func:`driveid.identify.forced.transfer.estimate_transfer` (in memory: the FRF and
         time series are dropped from JSON unless ``--series``).
 
     Returns

@@ -1,8 +1,8 @@
 """Analytic-signal helpers: padded Hilbert transform, noise level, smooth derivatives.
 
 These are the shared building blocks of the instantaneous-parameter methods of
-de Marchi (1998) §2.2.8-§2.2.9 (:mod:`driveid.identify.hilbert`) and of the Morlet
-wavelet method (:mod:`driveid.identify.wavelet`).
+de Marchi (1998) §2.2.8-§2.2.9 (:mod:`driveid.identify.free_decay.hilbert`) and of the Morlet
+wavelet method (:mod:`driveid.identify.free_decay.wavelet`).
 
 End effects of the discrete Hilbert transform decay only like ``1/t`` away from a
 truncated end, so :func:`analytic_signal` extends the record at both ends with a damped

@@ -10,12 +10,12 @@ Signals
 * :func:`chirp` — linear or logarithmic swept sine between ``f_min`` and ``f_max``;
 * :func:`multisine` — equal-amplitude lines on the grid ``k/T`` with Schroeder phases
   ``φ_k = -π k (k - 1) / F`` [3]_, periodic in the record, hence leakage-free for the H1
-  estimator of :mod:`driveid.identify.frf` when whole periods are analysed;
+  estimator of :mod:`driveid.identify.forced.frf` when whole periods are analysed;
 * :func:`prbs` — maximum-length binary sequence held for ``fs/f_clock`` samples;
 * :func:`filtered_random` — Gaussian noise band-limited by a 4th-order Butterworth filter
   (zero phase), scaled to the requested peak;
 * :func:`square_wave` — DC-biased square wave for the step/square-wave identification of
-  :mod:`driveid.identify.square_wave` (the thesis's low-bias breakaway test, ch. 4);
+  :mod:`driveid.identify.friction.square_wave` (the thesis's low-bias breakaway test, ch. 4);
 * :func:`ramps_with_dwell` — trapezoidal force ramps ``0 → +A → 0 → -A → 0`` with dwells;
 * :func:`sine` — one stepped-sine run (describing-function friction, thesis ch. 4 grid).
 

@@ -1,0 +1,494 @@
+"""The lumped drive as a function of named parameters, for :mod:`driveid.identify.drive.drive_fit`.
+
+What a drive fit *is*, below the estimator: the measured record of a drive
+(:class:`DriveRecord`), the TOML names of the drive's scalar parameters (``body1.J``,
+``link1.gap_plus``, ``feedback.delay``, ``body2.x0`` ...) with their units and physical
+bounds, a :class:`~driveid.sim.drive_types.DriveParams` rebuilt from values of some of them,
+the simulated channels of many parameter vectors in one
+:func:`~driveid.sim.batch.simulate_drive_batch` call, their central-difference Jacobian,
+and the drive written back as TOML that ``driveid simulate drive`` reads.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from driveid.errors import IdentificationError, ParameterError, SimulationError
+from driveid.sim.drive_types import BacklashLink, BodyParams, DriveParams, ShaftLink
+
+__all__ = ["DriveRecord", "parameter_names", "parameter_unit", "lower_bound"]
+
+_CHANNEL = re.compile(r"^([xv])([1-9][0-9]*)$")
+_BODY_FIELDS = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "fs_mean", "fs_delta")
+_SHAFT_FIELDS = ("k", "c")
+_BACKLASH_FIELDS = ("gap_plus", "gap_minus", "k", "c")
+_FEEDBACK_FIELDS = ("P", "D", "delay")
+_STATE_FIELDS = ("x0", "v0")
+# relative central-difference step: large enough that the located event times move by many
+# times their location tolerance, small enough that the truncation error (step²) is 1e-6
+_REL_STEP = 1e-3
+_NAME = re.compile(r"^(body|link)([1-9][0-9]*)\.(\w+)$|^feedback\.(P|D|delay)$")
+
+
+@dataclass(frozen=True)
+class DriveRecord:
+    """One measured run of a drive: time, input and any subset of body channels.
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        Uniform sample times [s].
+    channels : mapping of str to ndarray, shape (n,)
+        Measured channels named as ``driveid simulate drive`` writes them: ``x1`` (position
+        of body 1) [rad or m], ``v1`` (its velocity) [rad/s or m/s], ``x2`` ...
+    u : ndarray, shape (n,) or None
+        Torque or force on the input body [N·m or N] (open loop); None under feedback.
+    meta : mapping
+        Provenance (source file, columns).
+    """
+
+    t: np.ndarray
+    channels: Mapping[str, np.ndarray]
+    u: np.ndarray | None = None
+    meta: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        from driveid.errors import RecordError
+
+        t = np.asarray(self.t, dtype=float)
+        if t.ndim != 1 or t.size < 10 or not np.all(np.isfinite(t)):
+            raise RecordError(f"a drive record needs at least 10 finite sample times; got "
+                              f"shape {t.shape}")
+        dt = np.diff(t)
+        if np.any(dt <= 0) or np.max(np.abs(dt - dt.mean())) > 1e-6 * dt.mean():
+            raise RecordError("the drive fit needs uniform sampling (the simulator samples "
+                              "at fs); resample the record first; got a jittered or "
+                              "non-increasing time column")
+        chans = {}
+        for name, values in dict(self.channels).items():
+            if not _CHANNEL.match(name):
+                raise RecordError(f"drive channels are named x1, v1, x2, ... (body counted "
+                                  f"from 1); got {name!r}")
+            arr = np.asarray(values, dtype=float)
+            if arr.shape != t.shape or not np.all(np.isfinite(arr)):
+                raise RecordError(f"channel {name} must be finite with one value per sample "
+                                  f"({t.size}); got shape {arr.shape}")
+            chans[name] = arr
+        if not chans:
+            raise RecordError("a drive record needs at least one measured channel (x1, v1, "
+                              "x2 ...); got none")
+        u = None
+        if self.u is not None:
+            u = np.asarray(self.u, dtype=float)
+            if u.shape != t.shape or not np.all(np.isfinite(u)):
+                raise RecordError(f"u must be finite with one value per sample ({t.size}); "
+                                  f"got shape {u.shape}")
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "channels", chans)
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "meta", dict(self.meta))
+
+    @property
+    def fs(self) -> float:
+        """Sampling rate [Hz]."""
+        return float((self.t.size - 1) / (self.t[-1] - self.t[0]))
+
+    @classmethod
+    def from_result(cls, result: Any, channels: Sequence[str] = ("x1",), *,
+                    input_body: int | None = 0) -> DriveRecord:
+        """Return the channels of a simulated drive as a record (tests, benchmarks).
+
+        Parameters
+        ----------
+        result : DriveResult
+            From :func:`driveid.sim.simulate_drive`.
+        channels : sequence of str
+            Which channels to keep (``x1``, ``v2`` ...).
+        input_body : int or None
+            0-based body whose row of the command is ``u`` (None: no ``u``).
+
+        Returns
+        -------
+        DriveRecord
+            The record (noise-free).
+        """
+        chans = {}
+        for name in channels:
+            m = _CHANNEL.match(name)
+            if m is None:
+                raise ParameterError(f"channels are named x1, v1, x2 ...; got {name!r}")
+            arr = result.x if m.group(1) == "x" else result.v
+            chans[name] = arr[int(m.group(2)) - 1]
+        u = None
+        if input_body is not None:
+            cmd = np.asarray(result.command)
+            u = cmd if cmd.ndim == 1 else cmd[input_body]
+        return cls(t=result.t, channels=chans, u=u, meta={"source": "simulate_drive"})
+
+
+def channel_index(name: str) -> tuple[str, int]:
+    """Return ``("x" or "v", 0-based body)`` of a channel name such as ``x2``."""
+    m = _CHANNEL.match(name)
+    return m.group(1), int(m.group(2)) - 1
+
+
+def parameter_names(params: DriveParams, *, states: bool = True) -> list[str]:
+    """Return the TOML names of every scalar parameter of a drive (bodies counted from 1).
+
+    Parameters
+    ----------
+    params : DriveParams
+        The drive.
+    states : bool
+        Include the initial states ``bodyI.x0``, ``bodyI.v0`` of the unlocked bodies.
+
+    Returns
+    -------
+    list of str
+        ``body1.J``, ``body1.K`` ..., ``link1.k`` ..., ``feedback.P`` ..., ``body1.x0`` ...
+    """
+    names = []
+    for i, b in enumerate(params.bodies):
+        if b.locked:
+            continue
+        names += [f"body{i + 1}.{f}" for f in _BODY_FIELDS]
+    for j, ln in enumerate(params.links):
+        if isinstance(ln, ShaftLink):
+            names += [f"link{j + 1}.{f}" for f in _SHAFT_FIELDS]
+        elif isinstance(ln, BacklashLink):
+            names += [f"link{j + 1}.{f}" for f in _BACKLASH_FIELDS]
+    if params.feedback is not None:
+        names += [f"feedback.{f}" for f in _FEEDBACK_FIELDS]
+    if states:
+        names += [f"body{i + 1}.{f}" for i, b in enumerate(params.bodies) if not b.locked
+                  for f in _STATE_FIELDS]
+    return names
+
+
+def parameter_unit(name: str, units: str = "rad") -> str:
+    """Return the SI unit of a parameter name.
+
+    Parameters
+    ----------
+    name : str
+        TOML name, e.g. ``body1.J``, ``link1.gap_plus``.
+    units : {"rad", "m"}
+        Rotational or translational drive.
+
+    Returns
+    -------
+    str
+        The unit, e.g. ``"kg·m²"``.
+    """
+    field_name = name.rsplit(".", 1)[1]
+    rot = units == "rad"
+    table = {
+        "J": "kg·m²" if rot else "kg", "K": "N·m/rad" if rot else "N/m",
+        "k": "N·m/rad" if rot else "N/m", "P": "N·m/rad" if rot else "N/m",
+        "c_mean": "N·m·s/rad" if rot else "N·s/m", "c_delta": "N·m·s/rad" if rot else "N·s/m",
+        "c": "N·m·s/rad" if rot else "N·s/m", "D": "N·m·s/rad" if rot else "N·s/m",
+        "gap_plus": units, "gap_minus": units, "x0": units,
+        "v0": "rad/s" if rot else "m/s", "delay": "s",
+    }
+    return table.get(field_name, "N·m" if rot else "N")
+
+
+def lower_bound(name: str) -> float:
+    """Return the physical lower bound of a parameter.
+
+    Parameters
+    ----------
+    name : str
+        TOML name, e.g. ``body1.J``.
+
+    Returns
+    -------
+    float
+        0 for J, K, viscous and kinetic/static friction means, link k and c, gaps and the
+        delay; ``-inf`` for signed asymmetries, gains and initial states.
+    """
+    field_name = name.rsplit(".", 1)[1]
+    if field_name in ("c_delta", "fk_delta", "fs_delta", "x0", "v0", "P", "D"):
+        return -math.inf
+    return 0.0
+
+
+def get_value(params: DriveParams, x0: np.ndarray, v0: np.ndarray, name: str) -> float:
+    """Return the value of a named parameter of a drive and its initial state."""
+    kind, index, field_name = _split(name, params)
+    if field_name == "x0":
+        return float(x0[index])
+    if field_name == "v0":
+        return float(v0[index])
+    owner = {"body": params.bodies, "link": params.links}.get(kind)
+    obj = params.feedback if kind == "feedback" else owner[index]
+    return float(getattr(obj, field_name))
+
+
+def _split(name: str, params: DriveParams) -> tuple[str, int, str]:
+    m = _NAME.match(name)
+    if m is None:
+        raise ParameterError(f"parameters are named as in the TOML, e.g. body1.J, link1.k, "
+                             f"feedback.delay, body2.x0; got {name!r}")
+    if m.group(4):
+        if params.feedback is None:
+            raise ParameterError(f"{name} needs a [feedback] table in the drive; got none")
+        return "feedback", 0, m.group(4)
+    kind, index, field_name = m.group(1), int(m.group(2)) - 1, m.group(3)
+    count = params.n_bodies if kind == "body" else len(params.links)
+    if index >= count:
+        raise ParameterError(f"{name}: the drive has {count} {kind}(s); got {kind} "
+                             f"{index + 1}")
+    if kind == "body":
+        allowed = _BODY_FIELDS + _STATE_FIELDS
+    else:
+        ln = params.links[index]
+        allowed = (_SHAFT_FIELDS if isinstance(ln, ShaftLink) else
+                   _BACKLASH_FIELDS if isinstance(ln, BacklashLink) else ())
+    if field_name not in allowed:
+        raise ParameterError(f"{name}: {kind} {index + 1} has the parameters "
+                             f"{list(allowed)}; got {field_name!r}")
+    return kind, index, field_name
+
+
+def check_names(params: DriveParams, names: Sequence[str]) -> list[str]:
+    """Validate estimated parameter names (raise ParameterError naming the bad one)."""
+    out = []
+    for name in names:
+        kind, index, _ = _split(name, params)
+        if kind == "body" and params.bodies[index].locked:
+            raise ParameterError(f"{name}: body {index + 1} is locked; unlock it or drop "
+                                 f"{name}")
+        if name in out:
+            raise ParameterError(f"{name} is named twice in the estimated parameters")
+        out.append(name)
+    return out
+
+
+def _follows_kinetic(b: BodyParams) -> tuple[bool, bool]:
+    """Whether the static band is the kinetic one (then it moves with fk_mean, fk_delta)."""
+    eps = 1e-12 * max(1.0, abs(b.fk_mean) + abs(b.fk_delta))
+    return (abs(b.fs_mean - b.fk_mean - b.ripple_amplitude) <= eps,
+            abs(b.fs_delta - b.fk_delta) <= eps)
+
+
+def with_values(params: DriveParams, x0: np.ndarray, v0: np.ndarray,
+                values: Mapping[str, float]) -> tuple[DriveParams, np.ndarray, np.ndarray]:
+    """Return the drive and initial state with some named parameters replaced.
+
+    A static band equal to the kinetic one in ``params`` follows the kinetic values.
+    """
+    bodies = [dict() for _ in params.bodies]
+    links = [dict() for _ in params.links]
+    feedback: dict = {}
+    x0, v0 = x0.copy(), v0.copy()
+    for name, value in values.items():
+        kind, index, field_name = _split(name, params)
+        if field_name == "x0":
+            x0[index] = value
+        elif field_name == "v0":
+            v0[index] = value
+        elif kind == "body":
+            bodies[index][field_name] = float(value)
+        elif kind == "link":
+            links[index][field_name] = float(value)
+        else:
+            feedback[field_name] = float(value)
+    new_bodies = []
+    for b, change in zip(params.bodies, bodies, strict=True):
+        if change:
+            mean, delta = _follows_kinetic(b)
+            if mean and "fs_mean" not in change:
+                change["fs_mean"] = None
+            if delta and "fs_delta" not in change:
+                change["fs_delta"] = None
+            b = dataclasses.replace(b, **change)
+        new_bodies.append(b)
+    new_links = [dataclasses.replace(ln, **c) if c else ln
+                 for ln, c in zip(params.links, links, strict=True)]
+    fb = dataclasses.replace(params.feedback, **feedback) if feedback else params.feedback
+    return (DriveParams(bodies=tuple(new_bodies), links=tuple(new_links), feedback=fb,
+                        motor=params.motor), x0, v0)
+
+
+class DriveProblem:
+    """Simulated channels of a drive as a function of a scaled parameter vector.
+
+    ``theta = scale * z``; :meth:`outputs` simulates many ``z`` for one record in one batch
+    call (threads); :meth:`jacobian` stacks central differences.
+    """
+
+    def __init__(self, base: DriveParams, x0: np.ndarray, v0: np.ndarray,
+                 names: Sequence[str], scale: np.ndarray, record: DriveRecord,
+                 input_body: int | None, torque: np.ndarray | None = None,
+                 parallel: bool = True) -> None:
+        self.base, self.x0, self.v0 = base, np.asarray(x0, float), np.asarray(v0, float)
+        self.names, self.scale = list(names), np.asarray(scale, float)
+        self.record = record
+        self.channels = list(record.channels)
+        n, nb = record.t.size, base.n_bodies
+        grid = np.zeros((nb, n))
+        if torque is not None:
+            grid += np.asarray(torque, float).reshape(nb, -1)
+        if input_body is not None and record.u is not None:
+            grid[input_body] += record.u
+        self.torque = grid
+        self.parallel = parallel
+        self.fs = record.fs
+        self.duration = (n - 1) / self.fs
+        self.n_sims = 0
+
+    def build(self, z: np.ndarray) -> tuple[DriveParams, np.ndarray, np.ndarray]:
+        """Return the drive and initial state at scaled values ``z``."""
+        values = dict(zip(self.names, np.asarray(z) * self.scale, strict=True))
+        return with_values(self.base, self.x0, self.v0, values)
+
+    def outputs(self, zs: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """Simulate each ``z``; return the measured channels, shape (n_channels, n) each."""
+        from driveid.sim.batch import simulate_drive_batch
+
+        built = []
+        for z in zs:
+            try:
+                built.append(self.build(z))
+            except ParameterError as exc:
+                raise IdentificationError(f"the fit reached an unphysical drive ({exc}); "
+                                          "start nearer the truth or fix that parameter"
+                                          ) from None
+        try:
+            results = simulate_drive_batch(
+                [b[0] for b in built], duration=self.duration, fs=self.fs,
+                x0=np.array([b[1] for b in built]), v0=np.array([b[2] for b in built]),
+                torque=self.torque, parallel=self.parallel and len(built) > 1)
+        except SimulationError as exc:
+            raise IdentificationError(f"a trial drive could not be simulated ({exc}); "
+                                      "start nearer the truth or fix the contact "
+                                      "parameters") from None
+        self.n_sims += len(built)
+        n = self.record.t.size
+        out = []
+        for res in results:
+            rows = []
+            for name in self.channels:
+                kind, body = channel_index(name)
+                rows.append((res.x if kind == "x" else res.v)[body][:n])
+            arr = np.array(rows)
+            if arr.shape[1] != n or not np.all(np.isfinite(arr)):
+                raise IdentificationError("a trial drive aborted or diverged before the "
+                                          "record's end; start nearer the truth or fix "
+                                          "the feedback parameters")
+            out.append(arr)
+        return out
+
+    def steps(self, z: np.ndarray) -> np.ndarray:
+        """Central-difference steps in z (relative, never across a lower bound of 0)."""
+        return _REL_STEP * np.maximum(np.abs(z), 1e-2)
+
+    def value_and_jacobian(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return the channels at ``z`` and their central-difference Jacobian.
+
+        Returns
+        -------
+        y : ndarray, shape (n_channels, n)
+        jac : ndarray, shape (n_channels, n, p)
+        """
+        z = np.asarray(z, float)
+        h = self.steps(z)
+        lower = np.array([lower_bound(n) for n in self.names]) / self.scale
+        one_sided = z - h < lower
+        zs = [z]
+        for j in range(z.size):
+            for sign in ((1.0, 2.0) if one_sided[j] else (1.0, -1.0)):
+                zj = z.copy()
+                zj[j] += sign * h[j]
+                zs.append(zj)
+        outs = self.outputs(zs)
+        jac = np.empty(outs[0].shape + (z.size,))
+        for j in range(z.size):
+            if one_sided[j]:  # second-order forward difference: z - h would leave the bound
+                jac[..., j] = (4.0 * outs[1 + 2 * j] - outs[2 + 2 * j] - 3.0 * outs[0]) / (
+                    2.0 * h[j])
+            else:
+                jac[..., j] = (outs[1 + 2 * j] - outs[2 + 2 * j]) / (2.0 * h[j])
+        return outs[0], jac
+
+
+def _fmt(value: float) -> str:
+    if math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    return repr(float(value))
+
+
+def drive_to_toml(params: DriveParams, *, duration: float | None = None,
+                  fs: float | None = None, x0=None, v0=None, units: str = "rad",
+                  comments: Mapping[str, str] | None = None) -> str:
+    """Return a TOML description of a drive that :mod:`driveid.sim.config` reads back.
+
+    ``comments`` maps parameter names (``body1.J``) to a trailing comment (``± s.e.``).
+    """
+    comments = dict(comments or {})
+
+    def line(key: str, value: float, name: str) -> str:
+        note = comments.get(name)
+        return f"{key} = {_fmt(value)}" + (f"  # {note}" if note else "")
+
+    out = ["# drive identified by driveid identify drive; bodies count from 1",
+           "# (simulate drive re-runs it; an open-loop input torque is not part of it)", ""]
+    for i, b in enumerate(params.bodies):
+        out.append("[[body]]")
+        for f in ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta"):
+            out.append(line(f, getattr(b, f), f"body{i + 1}.{f}"))
+        mean, delta = _follows_kinetic(b)
+        if not mean or not delta:
+            out.append(line("fs_mean", b.fs_mean, f"body{i + 1}.fs_mean"))
+            out.append(line("fs_delta", b.fs_delta, f"body{i + 1}.fs_delta"))
+        if b.locked:
+            out.append("locked = true")
+        if b.has_ripple:
+            out += [f"ripple_amplitude = {_fmt(b.ripple_amplitude)}",
+                    f"ripple_period = {_fmt(b.ripple_period)}",
+                    f"ripple_phase = {_fmt(b.ripple_phase)}"]
+        out.append("")
+    for j, ln in enumerate(params.links):
+        out.append("[[link]]")
+        if ln is None:
+            out += ['type = "none"', ""]
+            continue
+        if isinstance(ln, ShaftLink):
+            out.append('type = "shaft"')
+            keys = _SHAFT_FIELDS
+        else:
+            out.append('type = "backlash"')
+            keys = _BACKLASH_FIELDS
+        out += [line(f, getattr(ln, f), f"link{j + 1}.{f}") for f in keys]
+        if isinstance(ln, BacklashLink):
+            if ln.allow_tension:
+                out.append("allow_tension = true")
+            if ln.contact == "restitution":
+                out += ['contact = "restitution"', f"restitution = {_fmt(ln.restitution)}",
+                        f"rest_velocity = {_fmt(ln.rest_velocity)}"]
+        out.append("")
+    fb = params.feedback
+    if fb is not None:
+        out.append("[feedback]")
+        out += [line(f, getattr(fb, f), f"feedback.{f}") for f in _FEEDBACK_FIELDS]
+        out += [f"body = {fb.body + 1}", f"reference = {_fmt(fb.reference)}",
+                f"saturation = {_fmt(fb.saturation)}", f"abort_limit = {_fmt(fb.abort_limit)}",
+                ""]
+    out.append("[run]")
+    if duration is not None:
+        out.append(f"duration = {_fmt(duration)}")
+    if fs is not None:
+        out.append(f"fs = {_fmt(fs)}")
+    for key, vals in (("x0", x0), ("v0", v0)):
+        if vals is not None:
+            out.append(f"{key} = [{', '.join(_fmt(v) for v in vals)}]")
+    out.append(f'units = "{units}"')
+    return "\n".join(out) + "\n"

@@ -1,0 +1,748 @@
+r"""Grey-box identification of the whole lumped drive by prediction error (output error).
+
+The drive that ``driveid simulate drive`` runs — bodies with inertia, ground spring and
+friction (thesis 2.136, 2.155), backlash with Kelvin–Voigt contact (2.27-2.29), compliant
+shafts (§2.1.3), an optional delayed PD loop (§2.2.7) — is simulated over the record and its
+named parameters (``body1.J``, ``body1.fk_mean``, ``link1.k``, ``link1.gap_plus``,
+``feedback.delay`` …, as in the TOML) are fitted to the measured channels (``x1``, ``v1``,
+``x2`` … any subset) by weighted least squares. The rest of the drive is fixed and reported
+as given. The initial state (``bodyI.x0``, ``bodyI.v0``) is estimated per record unless the
+TOML's ``[run]`` fixes it. Open loop, the record's ``u`` is the torque on the input body;
+with a ``[feedback]`` table the model's own delayed PD closes the loop (the record's ``u``,
+then the command, is not an input).
+
+Objective and its smoothness
+----------------------------
+``V(θ) = Σ_c Σ_k (ŷ_c(t_k; θ) - y_c(t_k))² / σ_c²`` with one weight per channel, ``σ_c``
+the channel's residual rms after a first fit (so positions and velocities are weighted by
+their own noise), then, where :mod:`driveid.identify.core._noise` is available, the residual and
+Jacobian of each channel prewhitened by an AR noise model fitted to the white-noise fit's
+residuals (prediction error). Stick, breakaway and contact are *located* inside each RK4
+step by the simulator's event search (:mod:`driveid.sim.drive`); so the simulated samples
+are continuous functions of θ (an event time moves continuously with θ and nothing is
+rounded to the grid) and piecewise smooth, with kinks only where the *number* of events
+changes. The Jacobian is by central differences with a relative step of 1e-3 in the scaled
+parameters: that step moves every located event by far more than the locating tolerance
+(so event-timing round-off, about 1e-12 s, is averaged out), its truncation error is about
+1e-6 relative, and it straddles an isolated kink instead of reading one side of it.
+Levenberg–Marquardt (scipy's trust-region reflective ``least_squares`` with the bounds below)
+only needs a Jacobian that predicts the decrease of ``V``; near the optimum the kinks are a
+set of measure zero and the Gauss–Newton covariance is that of the smooth branch. All
+``2p + 1`` simulations of a Jacobian run in one :func:`~driveid.sim.batch.
+simulate_drive_batch` call, in threads (a 10 s, 1 kHz two-body drive: milliseconds each).
+
+Local minima: growing horizon
+-----------------------------
+A whole-record output-error objective of a drive has local minima: the kinetic friction
+trades against the backlash gap, and a free-floating open-loop drive integrates every
+parameter error into its position. The fit first fits the first ``segment`` seconds of
+each record (0.5 s), then twice as much, and so on, then the whole records, each stage
+starting the next; in the short stages a loose prior (one start value wide, in the scaled
+parameters) holds what the horizon does not yet excite, e.g. a gap not yet closed. Each
+least-squares pass restarts its trust region (up to four times) where it stopped on the
+step tolerance short of a stationary point. Multiple shooting (segments with their own
+initial states) was tried and converged worse: a segment's start velocity is poorly known
+where the load flies inside the gap.
+
+Encoder quantisation
+--------------------
+Where noise of sd σ does not dither a rounding encoder of step q (σ < q/2), the mean
+reading is biased by up to ``q/π·exp(-2π²σ²/q²)`` with the same sign at the same position;
+the fit then compares each quantised position channel with the expected reading
+``E Q(x + n) = x + Σ_k q/(πk) (-1)^k exp(-2π²k²σ²/q²) sin(2πk x/q)`` (Widrow's series,
+``σ² = rms² - q²/12``) and takes a Newey–West sandwich covariance.
+
+Bounds and error bars
+---------------------
+Physical bounds: ``J >= 0``, ``K >= 0``, ``c_mean >= 0``, ``fk_mean >= 0``, ``fs_mean >= 0``,
+link ``k, c >= 0``, gaps ``>= 0``, ``delay >= 0``; signed asymmetries, gains and states are
+free. An estimate that ends on its bound is reported with ``stderr = nan`` and a warning, and
+the covariance of the others is that with it held there. Covariance ``s² (JᵀJ)⁻¹`` of the
+(prewhitened) Jacobian, ``s² = RSS/(N - p)``; standard errors are its diagonal. Encoder
+quantisation is not white; the AR noise model absorbs its correlation where the body moves.
+
+References
+----------
+.. [1] J. A. de Marchi, "Modeling of dynamic friction, impact backlash and elastic
+       compliance nonlinearities in machine tools", PhD thesis, RPI, 1998, §2.1.4, §2.2.7,
+       §3.2.2, ch. 6.
+.. [2] L. Ljung, *System Identification: Theory for the User*, 2nd ed., Prentice Hall,
+       1999, §7.3 (prediction-error methods).
+.. [3] B. Widrow, I. Kollár, *Quantization Noise*, Cambridge University Press, 2008,
+       ch. 4-5 (moments of a quantised Gaussian), doi:10.1017/CBO9780511754661.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
+
+from driveid.errors import IdentificationError, ParameterError
+from driveid.identify.core.estimate import Estimate, Parameter
+from driveid.identify.drive._drive_model import (
+    DriveProblem,
+    DriveRecord,
+    channel_index,
+    check_names,
+    drive_to_toml,
+    get_value,
+    lower_bound,
+    parameter_names,
+    parameter_unit,
+    with_values,
+)
+from driveid.identify.drive._drive_starts import drive_start_values
+from driveid.sim.drive_types import DriveParams
+
+__all__ = ["DriveRecord", "estimate_drive", "drive_start_values"]
+
+_BOUND_TOL = 1e-6  # relative distance to a bound counted as "at the bound" [-]
+
+
+def _noise_fitter():
+    """Return ``fit_noise_model`` of the shared noise module, or None (white noise)."""
+    try:
+        from driveid.identify.core._noise import fit_noise_model
+    except ImportError:  # until the shared noise module is there: white noise
+        return None
+    return fit_noise_model
+
+
+def _records(records) -> list[DriveRecord]:
+    if isinstance(records, DriveRecord):
+        return [records]
+    out = list(records)
+    if not out or not all(isinstance(r, DriveRecord) for r in out):
+        raise ParameterError("records must be a DriveRecord or a non-empty sequence of them")
+    return out
+
+
+def _initial_state(record: DriveRecord, params: DriveParams) -> tuple[np.ndarray, np.ndarray]:
+    """Start values of the initial state from the first samples of the record."""
+    nb = params.n_bodies
+    x0, v0 = np.full(nb, np.nan), np.full(nb, np.nan)
+    head = max(2, min(20, record.t.size // 50))
+    dt = 1.0 / record.fs
+    for name, y in record.channels.items():
+        kind, body = channel_index(name)
+        if body >= nb:
+            continue
+        if kind == "x":
+            x0[body] = float(np.mean(y[:3]))
+            if np.isnan(v0[body]):
+                tt = np.arange(head) * dt
+                coef, res, *_ = np.polyfit(tt, y[:head], 1, full=True)
+                se = math.sqrt(float(res[0]) / (head - 2) / np.sum((tt - tt.mean()) ** 2)) \
+                    if res.size else 0.0
+                # a slope within noise is a start at rest (the common case): a noisy
+                # nonzero start velocity lets a stuck body slide, a poor local minimum
+                v0[body] = float(coef[0]) if abs(coef[0]) > 3.0 * se else 0.0
+        else:
+            v0[body] = float(y[0])
+    known = np.flatnonzero(np.isfinite(x0))
+    for i in range(nb):  # an unmeasured body starts where its nearest measured one does
+        if np.isnan(x0[i]):
+            x0[i] = x0[known[np.argmin(np.abs(known - i))]] if known.size else 0.0
+        if np.isnan(v0[i]):
+            v0[i] = 0.0
+    locked = np.array([b.locked for b in params.bodies])
+    v0[locked] = 0.0
+    return x0, v0
+
+
+def _channel_noise(y: np.ndarray) -> float:
+    """Noise level of a channel from its second differences [its unit] (start weight)."""
+    d2 = np.diff(y, 2)
+    s = float(np.sqrt(np.mean(d2 * d2) / 6.0)) if d2.size else 0.0
+    span = float(np.ptp(y)) or 1.0
+    return max(s, 1e-9 * span)
+
+
+def _scale(name: str, value: float, base: DriveParams) -> float:
+    """Typical size of a parameter for scaling (its start, or a related one where 0)."""
+    if value != 0.0:
+        return abs(value)
+    owner, field_name = name.rsplit(".", 1)
+    partner = {"c_delta": "c_mean", "fk_delta": "fk_mean", "fs_delta": "fs_mean",
+               "gap_minus": "gap_plus", "gap_plus": "gap_minus"}.get(field_name)
+    if partner is not None:
+        try:
+            other = abs(get_value(base, np.zeros(base.n_bodies), np.zeros(base.n_bodies),
+                                  f"{owner}.{partner}"))
+        except ParameterError:
+            other = 0.0
+        if other > 0:
+            return 0.1 * other if field_name.endswith("delta") else other
+    return 1e-3 if field_name in ("gap_plus", "gap_minus", "delay") else 1.0
+
+
+class _Fit:
+    """The stacked, weighted (and prewhitened) residual of all records and channels."""
+
+    def __init__(self, problems, index, records, sigma):
+        self.problems, self.index, self.records = problems, index, records
+        self.sigma = sigma  # per record: array (n_channels,)
+        self.filters: list | None = None  # per record: list of noise models per channel
+        self.prior: np.ndarray | None = None  # shared z held loosely (growing horizon)
+        self.quanta: list | None = None  # per record: (step, noise sd) or None per channel
+        self._cache: dict[bytes, np.ndarray] = {}
+
+    def _whiten(self, r: int, c: int, values: np.ndarray) -> np.ndarray:
+        if self.filters is None:
+            return values
+        return self.filters[r][c].whiten(values)
+
+    def _measured(self, r: int, c: int, y: np.ndarray, jac: np.ndarray | None = None):
+        """Return the expected encoder reading of a simulated channel (and its Jacobian)."""
+        if self.quanta is None or self.quanta[r][c] is None:
+            return y, jac
+        q, sd = self.quanta[r][c]
+        k = np.arange(1, 6)[:, None]
+        damp = (-1.0) ** k * np.exp(-2.0 * (np.pi * k * sd / q) ** 2)
+        phase = 2.0 * np.pi * k * y[None, :] / q
+        mean = y + np.sum(q / (np.pi * k) * damp * np.sin(phase), axis=0)
+        if jac is None:
+            return mean, None
+        slope = 1.0 + np.sum(2.0 * damp * np.cos(phase), axis=0)
+        return mean, jac * slope[:, None]
+
+    def raw_residuals(self, z: np.ndarray) -> list[np.ndarray]:
+        """Model minus data per record, shape (n_channels, n), unweighted."""
+        out = []
+        for r, (prob, idx, rec) in enumerate(zip(self.problems, self.index, self.records,
+                                                 strict=True)):
+            y = prob.outputs([z[idx]])[0]
+            model = np.array([self._measured(r, c, y[c])[0] for c in range(y.shape[0])])
+            out.append(model - np.array([rec.channels[c] for c in prob.channels]))
+        return out
+
+    def residual(self, z: np.ndarray) -> np.ndarray:
+        parts = []
+        for r, res in enumerate(self.raw_residuals(z)):
+            for c in range(res.shape[0]):
+                parts.append(self._whiten(r, c, res[c] / self.sigma[r][c]))
+        if self.prior is not None:
+            parts.append(z[:self.prior.size] - self.prior)
+        return np.concatenate(parts)
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        blocks = []
+        for r, (prob, idx) in enumerate(zip(self.problems, self.index, strict=True)):
+            y, jac = prob.value_and_jacobian(z[idx])
+            for c in range(jac.shape[0]):
+                full = np.zeros((jac.shape[1], z.size))
+                full[:, idx] = self._measured(r, c, y[c], jac[c])[1] / self.sigma[r][c]
+                blocks.append(self._whiten(r, c, full))
+        if self.prior is not None:
+            blocks.append(np.eye(self.prior.size, z.size))
+        return np.vstack(blocks)
+
+
+def estimate_drive(
+    records,
+    start: DriveParams,
+    *,
+    estimate: Sequence[str],
+    x0=None,
+    v0=None,
+    input_body: int | None = None,
+    torque=None,
+    units: str = "rad",
+    starts_from_record: bool = True,
+    noise_model: bool = True,
+    segment: float | None = 0.5,
+    max_nfev: int = 60,
+    parallel: bool = True,
+) -> Estimate:
+    """Fit the lumped drive's named parameters to measured motor and/or load channels.
+
+    Parameters
+    ----------
+    records : DriveRecord or sequence of DriveRecord
+        Measured runs: uniform time [s], channels ``x1``, ``v1``, ``x2`` … [rad, rad/s or
+        m, m/s] (any subset), input ``u`` [N·m or N] (open loop). Several runs share the
+        drive's parameters and have their own initial states.
+    start : DriveParams
+        The drive's structure and start values (e.g. from :func:`driveid.sim.config.
+        load_drive_config`); parameters not in ``estimate`` keep these values (given).
+    estimate : sequence of str
+        Parameters to estimate, named as in the TOML: ``body1.J``, ``body2.fk_mean``,
+        ``link1.k``, ``link1.gap_plus``, ``feedback.delay`` … (bodies and links from 1).
+    x0, v0 : array_like, shape (n_bodies,), optional
+        Known initial positions [rad or m] and velocities [rad/s or m/s] (the TOML's
+        ``[run]``); default: estimated per record.
+    input_body : int, optional
+        0-based body the record's ``u`` acts on (default: the feedback body, else 0). Under
+        ``[feedback]`` the record's ``u`` is the loop's command and is not used.
+    torque : array_like, shape (n_bodies,), optional
+        Constant external torque on each body [N·m or N] (the TOML's ``[run] torque``).
+    units : {"rad", "m"}
+        Rotational or translational units of the reported parameters.
+    starts_from_record : bool
+        Replace the start values of estimated inertias, viscous and kinetic friction and
+        backlash gaps by those read from the record (:func:`drive_start_values`) where
+        that is possible.
+    noise_model : bool
+        Prewhiten by an AR noise model of each channel's residual (when the shared noise
+        module is available); False: white noise.
+    segment : float or None
+        Growing horizon: first fit the first ``segment`` seconds of every record, then
+        twice as much, and so on, each fit starting the next, then the whole records;
+        None: the whole records only. Late samples carry the accumulated phase and drift
+        error of a wrong start, and the whole-record objective then has local minima
+        (thesis-style trade-offs such as kinetic friction against backlash gap).
+    max_nfev : int
+        Most residual evaluations of each least-squares pass [-].
+    parallel : bool
+        Simulate the Jacobian's parameter perturbations in threads.
+
+    Returns
+    -------
+    Estimate
+        Method ``"drive-oe"``: every parameter of the drive (estimated ones with standard
+        errors; the rest ``fixed``), initial states (``body1.x0`` …, suffixed ``@r`` for
+        record r > 1 of several), covariance, diagnostics (``model_toml``: the drive with
+        the identified values, ``whiteness`` per channel, ``at_bound``, ``noise_model``,
+        ``n_simulations``, ``seconds``).
+
+    Raises
+    ------
+    ParameterError
+        Unknown or locked parameter names, a record whose channels name a missing body.
+    IdentificationError
+        If a trial drive cannot be simulated or the fit does not converge.
+
+    Notes
+    -----
+    See the module docstring for the objective, how stick and contact events keep it
+    smooth enough for Levenberg–Marquardt, and the error bars. Equation of motion (2.136)
+    with friction (2.155), backlash (2.27-2.29) as in :mod:`driveid.sim.drive`.
+
+    Examples
+    --------
+    >>> from driveid.sim import BodyParams, DriveParams, simulate_drive
+    >>> truth = DriveParams(bodies=(BodyParams(J=0.01, c_mean=0.002, fk_mean=0.05),))
+    >>> t = np.arange(2001) / 1000.0
+    >>> u = np.array([0.2 * np.sin(2 * np.pi * 1.5 * t)])
+    >>> res = simulate_drive(truth, duration=2.0, torque=u)
+    >>> rec = DriveRecord.from_result(res, ["x1"], input_body=None)
+    >>> rec = DriveRecord(t=rec.t, channels=rec.channels, u=u[0])
+    >>> off = DriveParams(bodies=(BodyParams(J=0.013, c_mean=0.002, fk_mean=0.065),))
+    >>> est = estimate_drive(rec, off, estimate=["body1.J", "body1.fk_mean"], x0=[0.0],
+    ...                      v0=[0.0], starts_from_record=False)
+    >>> round(est.value("body1.J"), 5), round(est.value("body1.fk_mean"), 4)
+    (0.01, 0.05)
+    """
+    tic = time.perf_counter()
+    recs = _records(records)
+    if not isinstance(start, DriveParams):
+        raise ParameterError(f"start must be a DriveParams; got {type(start).__name__}")
+    if start.smooth:
+        raise ParameterError("the drive fit runs the event-located simulator: LuGre friction "
+                             "and the motor model are not supported; remove them")
+    if units not in ("rad", "m"):
+        raise ParameterError(f'units must be "rad" or "m"; got {units!r}')
+    names = check_names(start, list(estimate))
+    if not names:
+        raise ParameterError("estimate must name at least one parameter, e.g. body1.J")
+    nb = start.n_bodies
+    for rec in recs:
+        for ch in rec.channels:
+            if channel_index(ch)[1] >= nb:
+                raise ParameterError(f"channel {ch} names a body the drive does not have "
+                                     f"({nb} bodies); map the columns or fix the TOML")
+    fb = start.feedback
+    if input_body is None:
+        input_body = fb.body if fb is not None else 0
+    if not (isinstance(input_body, (int, np.integer)) and 0 <= input_body < nb):
+        raise ParameterError(f"input_body must index a body (0..{nb - 1}); got {input_body!r}")
+    use_u = fb is None
+    if use_u and all(r.u is None for r in recs):
+        raise ParameterError("an open-loop fit needs the input u in the record (--force "
+                             "COL), or a [feedback] table in the drive")
+    state_names = [n for n in parameter_names(start) if n.endswith((".x0", ".v0"))]
+    fixed_states = {".x0": x0 is not None, ".v0": v0 is not None}
+    free_states = [n for n in state_names if not fixed_states[n[-3:]]]
+
+    base = start
+    warnings: list[str] = []
+    if starts_from_record:
+        guesses = drive_start_values(recs, start, names, input_body=input_body if use_u
+                                     else None)
+        if guesses:
+            base, _, _ = with_values(start, np.zeros(nb), np.zeros(nb), guesses)
+    starts = None
+    for fraction in _horizons(recs, segment):
+        # growing horizon: the early part of a record holds little accumulated phase error,
+        # so its objective has few local minima; each stage starts the next
+        pieces = [_head(rec, fraction) for rec in recs]
+        st = _stage(pieces, base, start, names, free_states, x0, v0, input_body, use_u,
+                    torque, parallel, max_nfev, False, starts, hold=True)
+        theta = st["sol"].x * st["scale_all"]
+        shared = dict(zip(names, theta[:len(names)], strict=True))
+        base, _, _ = with_values(base, np.zeros(nb), np.zeros(nb), shared)
+        starts = _states_of(st, theta, len(names))
+    st = _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, torque,
+                parallel, max_nfev, noise_model, starts)
+    sol, fit, problems, index = st["sol"], st["fit"], st["problems"], st["index"]
+    all_names, scale_all, states0 = st["all_names"], st["scale_all"], st["states0"]
+    lower, upper, noise_info = st["lower"], st["upper"], st["noise_info"]
+    with threadpool_limits(limits=1):
+        jac = fit.jacobian(sol.x)
+        resid = fit.residual(sol.x)
+    if not sol.success:
+        warnings.append(f"the least-squares fit stopped without converging ({sol.message})")
+    z = sol.x
+    span = np.maximum(np.abs(z), 1.0)
+    at_bound = [j for j in range(z.size)
+                if (z[j] - lower[j] <= _BOUND_TOL * span[j])
+                or (z[j] - upper[j] >= -_BOUND_TOL * span[j])]
+    free = [j for j in range(z.size) if j not in at_bound]
+    n_obs = resid.size
+    s2 = float(resid @ resid) / max(n_obs - len(free), 1)
+    cov_z = np.full((z.size, z.size), np.nan)
+    cond = math.nan
+    if free:
+        jf = jac[:, free]
+        u_, sv, vt = np.linalg.svd(jf, full_matrices=False)
+        cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+        if sv[-1] <= 1e-12 * sv[0]:
+            warnings.append("the estimated parameters are not identifiable from these "
+                            "channels (singular Jacobian); fix some or measure more channels")
+        inv = (vt.T / np.maximum(sv, 1e-300) ** 2) @ vt
+        cov_z[np.ix_(free, free)] = s2 * inv
+    cov_method = "ar-prewhitened" if fit.filters is not None else "white"
+    if free and _quantised(recs, fit, sol.x):
+        # encoder rounding that noise does not dither follows the signal for long
+        # stretches (constant while a body sticks): a Newey-West sandwich over the
+        # weighted, unwhitened residual takes in that long-range correlation
+        from driveid.identify.core._noise import hac_covariance
+
+        filters, fit.filters = fit.filters, None
+        with threadpool_limits(limits=1):
+            jw = fit.jacobian(sol.x)[:, free]
+            rw = fit.residual(sol.x)
+        fit.filters = filters
+        lengths = [rec.t.size for rec, prob in zip(recs, problems, strict=True)
+                   for _ in prob.channels]
+        cov_z[np.ix_(free, free)] = hac_covariance(jw, rw, segments=lengths)
+        cov_method = "newey-west (quantised)"
+    cov = cov_z * np.outer(scale_all, scale_all)
+    theta = z * scale_all
+    for j in at_bound:
+        warnings.append(f"{all_names[j]} = {theta[j]:.6g} ended at its bound "
+                        f"({'lower' if z[j] - lower[j] <= _BOUND_TOL * span[j] else 'upper'}); "
+                        "its standard error is not available and the others' hold it there")
+    # the same shape as every estimator's (see _plausibility): name -> its bound
+    held = {all_names[j]: {"bound": float((lower[j] if z[j] - lower[j] <= _BOUND_TOL * span[j]
+                                           else upper[j]) * scale_all[j]),
+                           "value": float(theta[j]), "at_bound": True} for j in at_bound}
+    return _result(start, base, names, all_names, theta, cov, recs, problems, index,
+                   fit, z, states0, free_states, held, units, input_body, use_u, sol,
+                   noise_info, cond, s2, warnings, tic, x0 is not None, v0 is not None,
+                   cov_method)
+
+
+
+def _horizons(recs, first: float | None) -> list[float]:
+    """Fractions of the records fitted before the whole: first, 2·first, 4·first ... [-]."""
+    if not first:
+        return []
+    total = min(float(r.t[-1] - r.t[0]) for r in recs)
+    out, h = [], float(first)
+    while h < 0.7 * total:
+        out.append(h / total)
+        h *= 2.0
+    return out
+
+
+def _head(rec: DriveRecord, fraction: float) -> DriveRecord:
+    n = max(int(round(fraction * rec.t.size)), 20)
+    return DriveRecord(t=rec.t[:n], u=None if rec.u is None else rec.u[:n],
+                       channels={c: y[:n] for c, y in rec.channels.items()}, meta=rec.meta)
+
+
+def _states_of(st: dict, theta: np.ndarray, n_shared: int) -> list:
+    """Return the fitted initial states of a stage, per record (the next stage's start)."""
+    out = []
+    for prob, idx, (sx, sv) in zip(st["problems"], st["index"], st["states0"], strict=True):
+        sx, sv = sx.copy(), sv.copy()
+        for name, j in zip(prob.names[n_shared:], idx[n_shared:], strict=True):
+            body = int(name[4:name.index(".")]) - 1
+            (sx if name.endswith(".x0") else sv)[body] = theta[j]
+        out.append((sx, sv))
+    return out
+
+
+def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, torque,
+           parallel, max_nfev, noise_model, starts=None, hold=False) -> dict:
+    """One least-squares fit of shared parameters and per-record states (weighted twice)."""
+    nb = start.n_bodies
+    zero = np.zeros(nb)
+    shared_values = np.array([get_value(base, zero, zero, n) for n in names])
+    scale_shared = np.array([_scale(n, v, base) for n, v in zip(names, shared_values,
+                                                                 strict=True)])
+    # global vector: shared parameters, then each record's free states
+    z0 = list(shared_values / scale_shared)
+    all_names = list(names)
+    problems, index, states0 = [], [], []
+    for r, rec in enumerate(recs):
+        sx, sv = _initial_state(rec, base) if starts is None else starts[r]
+        if x0 is not None:
+            sx = np.broadcast_to(np.asarray(x0, float), (nb,)).copy()
+        if v0 is not None:
+            sv = np.broadcast_to(np.asarray(v0, float), (nb,)).copy()
+        states0.append((sx, sv))
+        idx = list(range(len(names)))
+        local = list(names)
+        scale = list(scale_shared)
+        for n in free_states:
+            value = get_value(base, sx, sv, n)
+            s = _state_scale(n, rec)
+            idx.append(len(all_names))
+            all_names.append(n if len(recs) == 1 else f"{n}@{r + 1}")
+            local.append(n)
+            scale.append(s)
+            z0.append(value / s)
+        problems.append(DriveProblem(base, sx, sv, local, np.array(scale), rec,
+                                     input_body if use_u else None, torque=torque,
+                                     parallel=parallel))
+        index.append(np.array(idx))
+    z0 = np.array(z0)
+    scale_all = np.concatenate([scale_shared] + [p.scale[len(names):] for p in problems])
+    lower = np.array([lower_bound(n.split("@")[0]) for n in all_names]) / scale_all
+    upper = np.full(z0.size, np.inf)
+    # a fixed static band must hold the kinetic one: bound fk_mean by it
+    for j, n in enumerate(names):
+        if n.endswith(".fk_mean"):
+            b = start.bodies[int(n[4:n.index(".")]) - 1]
+            if f"{n[:-8]}.fs_mean" not in names and not _follows(b):
+                upper[j] = b.fs_mean / scale_all[j]
+    z0 = np.clip(z0, lower + 1e-9 * np.abs(z0 + 1e-3), upper)
+
+    sigma = [np.array([_channel_noise(rec.channels[c]) for c in p.channels])
+             for p, rec in zip(problems, recs, strict=True)]
+    fit = _Fit(problems, index, recs, sigma)
+    if hold:
+        # a prior of one start value's size on each shared parameter: a parameter the
+        # short horizon does not excite (a gap never closed yet) stays at its start
+        # instead of wandering off; an excited one is set by the data (weights 1/σ
+        # over hundreds of samples)
+        fit.prior = z0[:len(names)].copy()
+    with threadpool_limits(limits=1):
+        sol = _solve(fit, z0, lower, upper, max_nfev)
+        # weights from the first fit's residuals: each channel by its own noise level
+        raw = fit.raw_residuals(sol.x)
+        fit.sigma = _pooled_sigma(problems, raw)
+        fit.quanta = _quanta(recs, problems, fit.sigma)
+        sol = _solve(fit, sol.x, lower, upper, max_nfev)
+        noise_info = None
+        fitter = _noise_fitter() if noise_model else None
+        if fitter is not None:
+            raw = fit.raw_residuals(sol.x)
+            fit.sigma = _pooled_sigma(problems, raw)
+            fit.filters = [[fitter(res[c] / fit.sigma[r][c]) for c in range(res.shape[0])]
+                           for r, res in enumerate(raw)]
+            noise_info = {f"{p.channels[c]}" + ("" if len(recs) == 1 else f"@{r + 1}"):
+                          fit.filters[r][c].to_dict()
+                          for r, p in enumerate(problems) for c in range(len(p.channels))}
+            sol = _solve(fit, sol.x, lower, upper, max_nfev)
+    return {"sol": sol, "fit": fit, "problems": problems, "index": index,
+            "all_names": all_names, "scale_all": scale_all, "states0": states0,
+            "lower": lower, "upper": upper, "noise_info": noise_info}
+
+
+def _quanta(recs, problems, sigma) -> list | None:
+    """Return the encoder step and noise sd of each quantised position channel (or None).
+
+    The fit then compares the data with the *expected* reading of a rounding encoder
+    under Gaussian noise of sd σ (Widrow's series), ``E Q(x + n) = x + Σ_k q/(πk) (-1)^k
+    exp(-2π²k²σ²/q²) sin(2πk x/q)``: where the noise does not dither the encoder (σ < q/2)
+    the plain model is biased by up to ``q/π·exp(-2π²σ²/q²)`` at every sample, the same
+    sign at the same position, which no noise model averages out. ``σ² = rms² - q²/12``.
+    """
+    from driveid.identify.free_decay.output_error import detect_quantum
+
+    out, found = [], False
+    for rec, prob, sd_c in zip(recs, problems, sigma, strict=True):
+        row = []
+        for c, ch in enumerate(prob.channels):
+            q = detect_quantum(rec.channels[ch]) if ch.startswith("x") else None
+            if q is None:
+                row.append(None)
+                continue
+            noise = math.sqrt(max(sd_c[c] ** 2 - q * q / 12.0, (0.05 * q) ** 2))
+            row.append((q, noise))
+            found = True
+        out.append(row)
+    return out if found else None
+
+
+def _quantised(recs, fit: _Fit, z: np.ndarray) -> bool:
+    """Whether a position channel sits on an encoder grid coarser than twice its residual rms."""
+    from driveid.identify.free_decay.output_error import detect_quantum
+
+    raw = fit.raw_residuals(z)
+    for rec, prob, res in zip(recs, fit.problems, raw, strict=True):
+        for c, ch in enumerate(prob.channels):
+            if ch.startswith("x"):
+                q = detect_quantum(rec.channels[ch])
+                if q is not None and q > 2.0 * float(np.sqrt(np.mean(res[c] ** 2))):
+                    return True
+    return False
+
+
+def _pooled_sigma(problems, raw) -> list[np.ndarray]:
+    """Return the residual rms of each channel name over all records.
+
+    Pooled: a short stuck piece alone would fit its quantised samples exactly and get an
+    infinite weight.
+    """
+    sums: dict[str, list[float]] = {}
+    for prob, res in zip(problems, raw, strict=True):
+        for c, ch in enumerate(prob.channels):
+            acc = sums.setdefault(ch, [0.0, 0.0])
+            acc[0] += float(res[c] @ res[c])
+            acc[1] += res.shape[1]
+    rms = {ch: math.sqrt(a / n) if a > 0 else 1e-12 for ch, (a, n) in sums.items()}
+    return [np.array([rms[ch] for ch in prob.channels]) for prob in problems]
+
+
+def _follows(b) -> bool:
+    return abs(b.fs_mean - b.fk_mean - b.ripple_amplitude) <= 1e-12 * max(1.0, b.fk_mean)
+
+
+def _state_scale(name: str, rec: DriveRecord) -> float:
+    spans = [float(np.ptp(y)) for c, y in rec.channels.items() if c[0] == name[-2]]
+    if name.endswith(".x0"):
+        return max(spans + [1e-3]) or 1.0
+    if not spans:  # velocity scale from the positions' rate
+        spans = [float(np.ptp(np.diff(y))) * rec.fs for c, y in rec.channels.items()
+                 if c[0] == "x"]
+    return max(spans + [1e-3]) or 1.0
+
+
+def _solve(fit: _Fit, z0, lower, upper, max_nfev, restarts: int = 4):
+    lo = np.where(np.isfinite(lower), lower, -np.inf)
+    try:
+        sol = None
+        for _ in range(restarts):
+            # a fresh trust region: where the event pattern changes near the optimum the
+            # linear model fails for a step, the region collapses and the solver stops
+            # on xtol short of the minimum; a restart from there goes on
+            new = least_squares(fit.residual, z0 if sol is None else sol.x,
+                                jac=fit.jacobian, bounds=(lo, upper), method="trf",
+                                x_scale="jac", max_nfev=max_nfev, xtol=1e-10, ftol=1e-10,
+                                gtol=1e-10)
+            done = sol is not None and new.cost > (1.0 - 1e-6) * sol.cost
+            if sol is not None:
+                new.nfev += sol.nfev
+            sol = new
+            if done or sol.status in (1, 2):  # gtol or ftol: converged
+                break
+        return sol
+    except ValueError as exc:  # non-finite residual or Jacobian
+        raise IdentificationError(f"the drive fit failed ({exc}); start nearer the truth "
+                                  "or estimate fewer parameters") from None
+
+
+def _result(start, base, names, all_names, theta, cov, recs, problems, index, fit, z,
+            states0, free_states, at_bound, units, input_body, use_u, sol, noise_info,
+            cond, s2, warnings, tic, x0_given, v0_given, cov_method) -> Estimate:
+    from driveid.validate import whiteness
+
+    nb = start.n_bodies
+    values = dict(zip(all_names, theta, strict=True))
+    shared = {n: values[n] for n in names}
+    fitted, _, _ = with_values(start, np.zeros(nb), np.zeros(nb), shared)
+    params: dict[str, Parameter] = {}
+    stderr = np.sqrt(np.abs(np.diag(cov)))
+    for n in parameter_names(fitted, states=False):
+        unit = parameter_unit(n, units)
+        if n in names:
+            j = all_names.index(n)
+            params[n] = Parameter(float(theta[j]), float(stderr[j]), unit)
+        else:
+            params[n] = Parameter(get_value(fitted, np.zeros(nb), np.zeros(nb), n),
+                                  math.nan, unit, fixed=True)
+    final_states = []
+    for r, (sx, sv) in enumerate(states0):
+        sx, sv = sx.copy(), sv.copy()
+        for n in parameter_names(fitted):
+            if not n.endswith((".x0", ".v0")):
+                continue
+            key = n if len(recs) == 1 else f"{n}@{r + 1}"
+            body = int(n[4:n.index(".")]) - 1
+            target = sx if n.endswith(".x0") else sv
+            unit = parameter_unit(n, units)
+            if key in values:
+                j = all_names.index(key)
+                target[body] = values[key]
+                params[key] = Parameter(float(theta[j]), float(stderr[j]), unit)
+            else:
+                params[key] = Parameter(float(target[body]), math.nan, unit, fixed=True)
+        final_states.append((sx, sv))
+    est_names = [all_names[j] for j in range(len(all_names))]
+    raw = fit.raw_residuals(z)
+    white = {}
+    rms = {}
+    for r, (prob, res) in enumerate(zip(problems, raw, strict=True)):
+        for c, ch in enumerate(prob.channels):
+            key = ch if len(recs) == 1 else f"{ch}@{r + 1}"
+            w = fit._whiten(r, c, res[c] / fit.sigma[r][c])
+            test = whiteness(w)
+            white[key] = {"p_value": test["p_value"], "white": test["white"]}
+            rms[key] = float(np.sqrt(np.mean(res[c] ** 2)))
+            if not test["white"]:
+                warnings.append(f"the residual of {key} is not white (Ljung-Box p = "
+                                f"{test['p_value']:.2g}): the model misses some dynamics "
+                                "or the noise is coloured; the standard errors may be low")
+    from driveid.identify.free_decay.output_error import detect_quantum
+
+    for ch in sorted({c for r in recs for c in r.channels if c.startswith("x")}):
+        q = detect_quantum(next(r.channels[ch] for r in recs if ch in r.channels))
+        key = ch if len(recs) == 1 else f"{ch}@1"
+        if q is not None and key in rms and q > 2.0 * rms[key]:
+            # the rounding error of an encoder follows the signal: where noise does not
+            # dither it (step > 2 residual rms: 8000 counts/rev with 2e-4 rad noise) it is
+            # largely a deterministic error
+            # that the error bars of a noise model do not cover (benchmarks/bench_drive_fit)
+            warnings.append(f"{ch} is quantised with a step of {q:.3g} against a residual "
+                            f"rms of {rms[key]:.3g}: the encoder's rounding is not noise; "
+                            "the covariance is a Newey-West sandwich, whose calibration "
+                            "on such records is only partly checked (docs/drive-fit.md)")
+    comments = {n: f"± {params[n].stderr:.3g}" for n in names
+                if math.isfinite(params[n].stderr)}
+    sx, sv = final_states[0]
+    toml = drive_to_toml(fitted, duration=float(recs[0].t[-1] - recs[0].t[0]),
+                         fs=recs[0].fs, x0=sx, v0=sv, units=units, comments=comments)
+    n_sims = sum(p.n_sims for p in problems)
+    diagnostics = {
+        "n_samples": int(sum(r.t.size for r in recs)),
+        "n_records": len(recs),
+        "channels": sorted({c for r in recs for c in r.channels}),
+        "residual_rms": rms,
+        "whiteness": white,
+        "at_bound": at_bound,
+        "noise_model": noise_info if noise_info is not None else "white",
+        "s2": s2,
+        "covariance_method": cov_method,
+        "condition": cond,
+        "nfev": int(sol.nfev),
+        "n_simulations": int(n_sims),
+        "seconds": time.perf_counter() - tic,
+        "model_toml": toml,
+        "input_body": int(input_body) + 1 if use_u else None,
+        "closed_loop": not use_u,
+        "initial_state": "given" if (x0_given and v0_given) else "estimated",
+    }
+    return Estimate(
+        method="drive-oe", params=params,
+        data_used={"estimated": est_names, "channels": diagnostics["channels"]},
+        diagnostics=diagnostics, warnings=tuple(dict.fromkeys(warnings)),
+        covariance={"names": est_names, "matrix": cov})

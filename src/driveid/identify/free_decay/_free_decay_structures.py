@@ -1,0 +1,542 @@
+r"""Noise models, nested structures and adequacy of the free-decay output-error fit (issue 24).
+
+:mod:`driveid.identify.free_decay.output_error` fits the exact piecewise free response (thesis
+2.139-2.143, 2.156, 2.168) to every sample. This module holds what makes its error bars
+honest on real records:
+
+* prewhitening of Jacobian blocks with carried filter state (:class:`StreamWhitener`), so
+  that the blockwise normal equations of long records stay O(block) in memory;
+* AR noise simulated from a fitted :class:`~driveid.identify.core._noise.NoiseModel` for the
+  encoder bootstrap (:func:`simulate_noise`);
+* the nested structures that real free decays show, fitted on a decimated copy and compared
+  by BIC on prewhitened residuals (:func:`structure_test`): ``+ drift`` (a linear drift per
+  record) and ``+ quadratic damping`` — the aerodynamic drag ``c₂|x'|x'`` of a pendulum,
+  by its equivalent linearisation per half cycle ``ζ_k = ζ_s + q A_k``, ``q = 4c₂/(3πJ)``
+  (Krylov–Bogoliubov averaging; the amplitude ``A_k`` is that of the half cycle's start).
+  A constant offset is not a structure: it trades one-for-one with ``θk_delta``.
+
+Not in the thesis (§2.2.5 fits peaks and models no noise).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import lfilter
+
+from driveid.identify.core._adequacy import Structure, compare_structures, ljung_box
+from driveid.identify.core._noise import NoiseModel, fit_noise_model, white_noise
+from driveid.identify.free_decay._free_response import kinetic_stop_count, response
+
+__all__ = ["StreamWhitener", "simulate_noise", "structure_test", "fit_structure",
+           "DRIFT", "QUADRATIC", "BASE"]
+
+BASE = "viscous + Coulomb"
+DRIFT = "+ drift"
+QUADRATIC = "+ quadratic damping"
+#: Samples the structure test is decimated to [-] (the fits differentiate numerically).
+STRUCTURE_SAMPLES = 4000
+_EFFECTS = {
+    DRIFT: ("a slow drift of the measured position (sensor, support or thermal)",
+            "driveid identify logdec --drift"),
+    QUADRATIC: ("damping that grows with amplitude (quadratic, aerodynamic drag): the decay "
+                "is faster at large swings than any viscous-plus-Coulomb law allows",
+                "driveid identify hilbert (damping against amplitude)"),
+}
+
+
+class StreamWhitener:
+    """Apply ``A(q)`` to consecutive row blocks of one record, carrying the filter state.
+
+    Parameters
+    ----------
+    noise : NoiseModel
+        The AR model; ``A(q) = 1 - Σ a_j q⁻ʲ``.
+    columns : int
+        Columns of the blocks [-].
+
+    Notes
+    -----
+    The output is what :meth:`NoiseModel.whiten` gives on the whole record: the first
+    ``p`` rows of the record are dropped.
+    """
+
+    def __init__(self, noise: NoiseModel, columns: int) -> None:
+        self.b = np.concatenate([[1.0], -np.asarray(noise.ar, float)])
+        self.p = noise.order
+        self.zi = np.zeros((self.p, columns))
+        self.skip = self.p
+
+    def __call__(self, block: np.ndarray) -> np.ndarray:
+        """Whiten the next rows; return those after the record's first p."""
+        if self.p == 0:
+            return block
+        out, self.zi = lfilter(self.b, [1.0], block, axis=0, zi=self.zi)
+        if self.skip:
+            drop = min(self.skip, out.shape[0])
+            self.skip -= drop
+            out = out[drop:]
+        return out
+
+
+def simulate_noise(noise: NoiseModel, segments: Sequence[int], variance: float,
+                   rng: np.random.Generator) -> np.ndarray:
+    """Draw stacked AR noise of the model's spectrum, scaled to ``variance``.
+
+    Parameters
+    ----------
+    noise : NoiseModel
+        AR model (white for order 0).
+    segments : sequence of int
+        Samples of each record [-].
+    variance : float
+        Variance of the drawn noise [unit²].
+    rng : Generator
+        Random generator.
+
+    Returns
+    -------
+    ndarray, shape (sum(segments),)
+        Noise [unit]; a burn-in of 10/(1 - max|pole|) samples (at most 5000) per record
+        puts each record in the stationary state.
+    """
+    a = np.concatenate([[1.0], -np.asarray(noise.ar, float)])
+    poles = np.abs(np.roots(a)) if noise.order else np.zeros(1)
+    burn = int(min(5000, 10.0 / max(1.0 - float(np.max(poles)), 1e-3))) if noise.order else 0
+    parts = []
+    for length in segments:
+        w = rng.normal(size=length + burn)
+        parts.append(lfilter([1.0], a, w)[burn:] if noise.order else w)
+    e = np.concatenate(parts)
+    scale = math.sqrt(max(variance, 0.0) / max(float(e @ e) / e.size, 1e-300))
+    return e * scale
+
+
+def _layout(n_records: int, per: int, add_drift: bool, add_quad: bool) -> dict[str, int]:
+    """Positions of the optional unknowns after the base vector (5 + per·records)."""
+    k = 5 + per * n_records
+    out = {"base": k}
+    if add_drift:
+        out["drift"] = k
+        k += n_records
+    if add_quad:
+        out["quad"] = k
+        k += 1
+    out["size"] = k
+    return out
+
+
+def structure_model(times: Sequence[np.ndarray], theta: np.ndarray, counts: Sequence[int],
+                    per: int, add_drift: bool, add_quad: bool) -> np.ndarray:
+    """Stacked free response of a structure (base vector + drift slopes + ``q``).
+
+    Parameters
+    ----------
+    times : sequence of ndarray, shape (n_r,)
+        Sample times per record [s].
+    theta : ndarray, shape (k,)
+        Base unknowns (``GLOBAL_NAMES``, then ``x_r, t_r`` [, slope] per record), then
+        one drift slope per record [unit/s] (``add_drift``), then ``q`` [1/unit]
+        (``add_quad``).
+    counts : sequence of int
+        Half cycles per record before the body sticks [-].
+    per : int
+        Base unknowns per record (2, or 3 with the base's own drift) [-].
+    add_drift, add_quad : bool
+        Which richer terms ``theta`` carries.
+
+    Returns
+    -------
+    ndarray, shape (sum n_r,)
+        Position [m or rad].
+    """
+    lay = _layout(len(times), per, add_drift, add_quad)
+    q = float(theta[lay["quad"]]) if add_quad else 0.0
+    parts = []
+    for r, (t, n_half) in enumerate(zip(times, counts, strict=True)):
+        k = 5 + per * r
+        x, _, _ = response(t, theta[:5], theta[k], theta[k + 1], n_half, jacobian=False,
+                           zeta_amp=q)
+        slope = theta[k + 2] if per == 3 else 0.0
+        if add_drift:
+            slope = slope + theta[lay["drift"] + r]
+        if slope:
+            x = x + slope * (t - t[0])
+        parts.append(x)
+    return np.concatenate(parts)
+
+
+def _bounds(size: int, per: int, n_records: int, passive: bool):
+    lower = np.full(size, -np.inf)
+    upper = np.full(size, np.inf)
+    lower[0] = 1e-12
+    lower[1:3], upper[1:3] = (0.0 if passive else -0.999), 0.999
+    lower[3] = 0.0
+    return lower, upper
+
+
+def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, segments, *,
+                  passive=True, max_nfev=60):
+    """Fit one structure by least squares on prewhitened residuals (numerical Jacobian).
+
+    Parameters
+    ----------
+    times : sequence of ndarray, shape (n_r,)
+        Sample times per record [s].
+    y : ndarray, shape (n,)
+        Stacked positions [m or rad].
+    theta0 : ndarray, shape (k,)
+        Start (see :func:`structure_model`).
+    counts : sequence of int
+        Half cycles per record [-].
+    per : int
+        Base unknowns per record [-].
+    add_drift, add_quad : bool
+        The richer terms.
+    noise : NoiseModel
+        Prewhitening filter.
+    segments : sequence of int
+        Record lengths [-].
+    passive : bool
+        Bound ζ± >= 0.
+    max_nfev : int
+        Most function evaluations [-].
+
+    Returns
+    -------
+    dict
+        ``theta``, ``residual`` (raw), ``white_residual``, ``jac`` (prewhitened, n_w x k),
+        ``rss`` (prewhitened).
+    """
+    lower, upper = _bounds(theta0.size, per, len(times), passive)
+    if add_quad:
+        lower[-1] = 0.0  # drag only takes energy out
+    theta0 = np.clip(theta0, lower, upper)
+    y_w = noise.whiten(y, segments)
+
+    def resid(theta):
+        with np.errstate(over="ignore", invalid="ignore"):
+            f = structure_model(times, theta, counts, per, add_drift, add_quad)
+        r = y_w - noise.whiten(f, segments)
+        return np.where(np.isfinite(r), r, 1e6)
+
+    sol = least_squares(resid, theta0, bounds=(lower, upper), x_scale="jac",
+                        max_nfev=max_nfev * theta0.size, method="trf")
+    raw = y - structure_model(times, sol.x, counts, per, add_drift, add_quad)
+    return {"theta": sol.x, "residual": raw, "white_residual": sol.fun,
+            "jac": -sol.jac, "rss": float(sol.fun @ sol.fun), "lower": lower,
+            "upper": upper}
+
+
+def structure_test(times: Sequence[np.ndarray], y: np.ndarray, p: np.ndarray,
+                   counts: Sequence[int], per: int, noise_order: int, *,
+                   passive: bool = True) -> dict:
+    """Fit the base, ``+ drift`` and ``+ quadratic damping`` on a decimated copy; compare.
+
+    Parameters
+    ----------
+    times : sequence of ndarray, shape (n_r,)
+        Sample times per record [s].
+    y : ndarray, shape (n,)
+        Stacked positions [m or rad].
+    p : ndarray, shape (5 + per·records,)
+        The base fit.
+    counts : sequence of int
+        Its half cycles per record [-].
+    per : int
+        Base unknowns per record [-].
+    noise_order : int
+        AR order of the base's noise model (counted as parameters) [-].
+    passive : bool
+        Bound ζ± >= 0.
+
+    Returns
+    -------
+    dict
+        ``comparison`` (:func:`~driveid.identify.core._adequacy.compare_structures`), ``fits``
+        (name -> fit on the decimated copy), ``step`` (decimation), ``noise``.
+    """
+    n = sum(t.size for t in times)
+    step = max(1, math.ceil(n / STRUCTURE_SAMPLES))
+    counts = list(counts)
+    for r, t in enumerate(times):  # still moving at the end: spare half cycles are harmless
+        k = 5 + per * r
+        n_stop, inside = kinetic_stop_count(p[:5], p[k], p[k + 1], float(t[-1]))
+        if not inside:
+            counts[r] = max(counts[r], n_stop) + 2
+    lengths = [t.size for t in times]
+    t_d = [t[::step] for t in times]
+    starts = np.cumsum([0] + lengths[:-1])
+    y_d = np.concatenate([y[s:s + m:step] for s, m in zip(starts, lengths, strict=True)])
+    seg_d = [t.size for t in t_d]
+    n_records = len(times)
+    options = [(BASE, False, False), (DRIFT, True, False), (QUADRATIC, False, True)]
+    if per == 3:  # the base already has a drift
+        options = [options[0], options[2]]
+    white = NoiseModel((), 1.0, 1.0, 0, (), "white")
+    fits, sizes = {}, {}
+    for name, add_drift, add_quad in options:
+        lay = _layout(n_records, per, add_drift, add_quad)
+        theta0 = np.concatenate([p, np.zeros(lay["size"] - p.size)])
+        starts = [theta0]
+        if add_quad:
+            # half the damping from the drag at the typical amplitude, with and without the
+            # base's Coulomb friction (which a drag-damped decay pushes the base towards)
+            amp = max(math.sqrt(2.0) * float(np.std(y_d)), 1e-12)
+            zeta = 0.5 * max(0.5 * (p[1] + p[2]), 1e-4)
+            theta0[1:3] = 0.5 * p[1:3]
+            theta0[lay["quad"]] = zeta / amp
+            bare = theta0.copy()
+            bare[3] = 0.0
+            starts = [theta0, bare]
+        # each structure gets its own noise model: a misfit must not hide in the AR model
+        fit = min((fit_structure(t_d, y_d, th, counts, per, add_drift, add_quad, white, seg_d,
+                                 passive=passive) for th in starts), key=lambda f: f["rss"])
+        noise = fit_noise_model(fit["residual"], segments=seg_d, n_params=lay["size"])
+        if not noise.is_white:
+            fit = fit_structure(t_d, y_d, fit["theta"], counts, per, add_drift, add_quad,
+                                noise, seg_d, passive=passive)
+        fit["noise"] = noise
+        fits[name] = fit
+        sizes[name] = lay["size"]
+    # the same prewhitened samples for every structure: drop the largest order's head
+    top = max(f["noise"].order for f in fits.values())
+    candidates = []
+    for name, _, _ in options:
+        fit = fits[name]
+        kept = _trim(fit["white_residual"], seg_d, fit["noise"].order, top)
+        effect, command = _EFFECTS.get(name, ("", ""))
+        candidates.append(Structure(name, sizes[name] + fit["noise"].order,
+                                    float(kept @ kept) / kept.size, kept.size, effect, command))
+    comparison = compare_structures(candidates)
+    best = next(c for c in candidates if c.name == comparison["chosen"])
+    if best is not candidates[0]:  # each has its own noise model: say so, not Δk
+        comparison["reason"] = (
+            f"'{best.name}' chosen over '{BASE}': BIC lower by "
+            f"{candidates[0].bic - best.bic:.1f} with each structure's own AR noise model "
+            f"(orders {fits[BASE]['noise'].order} and {fits[best.name]['noise'].order}); "
+            f"{best.effect}")
+    return {"comparison": comparison, "fits": fits, "step": step, "counts": counts,
+            "options": {name: (d, q) for name, d, q in options}}
+
+
+def _trim(white_residual, segments, order, top):
+    """Drop ``top - order`` more leading rows of each record's prewhitened residuals."""
+    parts, start = [], 0
+    for length in segments:
+        m = max(length - order, 0)
+        parts.append(white_residual[start:start + m][top - order:])
+        start += m
+    return np.concatenate(parts)
+
+
+def inadequacy_notes(white_residual: np.ndarray, raw_residual: np.ndarray, fs: float,
+                     omega_d: float, comparison: dict | None) -> list[str]:
+    """Plain-words reading of residuals the chosen structure leaves correlated.
+
+    Parameters
+    ----------
+    white_residual : ndarray, shape (m,)
+        Prewhitened residuals [unit].
+    raw_residual : ndarray, shape (n,)
+        Raw residuals [unit].
+    fs : float
+        Sample rate [Hz] (median).
+    omega_d : float
+        Damped frequency of the fit [rad/s].
+    comparison : dict or None
+        The structure comparison.
+
+    Returns
+    -------
+    list of str
+        Findings, each naming the effect and the command that fits it.
+    """
+    from driveid.signal.envelope import dominant_frequency
+
+    notes = []
+    lb = ljung_box(white_residual)
+    if lb["white"]:
+        return notes
+    f_res = dominant_frequency(raw_residual, fs) if raw_residual.size > 16 else 0.0
+    if f_res > 0 and abs(f_res - omega_d) > 0.2 * omega_d and f_res > 0.05 * omega_d:
+        notes.append(
+            f"the residuals oscillate at {f_res / (2 * math.pi):.4g} Hz, away from the mode "
+            f"({omega_d / (2 * math.pi):.4g} Hz): a second mode or a forcing the free-decay "
+            "model lacks (driveid identify hilbert on a band-passed record, or crop it)")
+    else:
+        notes.append(
+            "the residuals follow the oscillation itself: the damping law is not viscous plus "
+            "Coulomb (amplitude-dependent damping); driveid identify hilbert gives the damping "
+            "against amplitude")
+    return notes
+
+
+def _same_noise(a: NoiseModel, b: NoiseModel) -> bool:
+    if a.order != b.order:
+        return False
+    return a.is_white or float(np.max(np.abs(np.subtract(a.ar, b.ar)))) < 0.02
+
+
+def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
+    """Refit every candidate on residuals prewhitened by an AR model, until it settles.
+
+    Parameters
+    ----------
+    problem : output_error._Problem
+        The fit problem; its ``noise`` is set to the final model.
+    candidates : list of dict
+        Candidate fits (``p``, ``counts``, ``rss``, ``sol``) of the white-noise search.
+    chosen : dict
+        The lowest-RSS candidate.
+    n_par : int
+        Unknowns of the fit [-].
+    forbidden : callable
+        ``forbidden(problem, p, counts)``: True for a stop count the kinetic friction forbids.
+    rounds : int
+        Most refits [-] (2-3 suffice: the AR model of the residuals moves little).
+
+    Returns
+    -------
+    (list of dict, dict)
+        The refitted candidates and the chosen one (unchanged when the residuals are white).
+    """
+    y = (problem.y[0] if len(problem.y) == 1 else np.concatenate(problem.y))
+    white_rss = None
+    first = (candidates, chosen)
+    for _ in range(rounds):
+        resid = y - problem.model(chosen["p"], chosen["counts"], False)[0]
+        rss = float(resid @ resid)
+        if white_rss is None:
+            white_rss = rss
+        elif rss > 1.05 * white_rss:
+            # the prewhitened fit wandered (an AR model fitted to a misfit, not to noise,
+            # is blind at low frequencies): keep the white fit; assess() then tests the
+            # structures and widens the error bars
+            problem.noise = white_noise(resid)
+            problem.noise_rejected = True
+            return first
+        model = fit_noise_model(resid, segments=problem.segments, n_params=n_par)
+        if _same_noise(model, problem.noise):
+            if model.is_white:  # the white fit stands; report the model actually fitted
+                problem.noise = model
+            break
+        previous = problem.noise
+        problem.noise = model
+        refits = []
+        for c in candidates:
+            sol = problem.fit(c["p"], c["counts"])
+            if sol.status > 0 and np.all(np.isfinite(sol.x)) and \
+                    not forbidden(problem, sol.x, c["counts"]):
+                refits.append({"p": sol.x, "counts": c["counts"], "rss": float(2 * sol.cost),
+                               "sol": sol})
+        if not refits:  # keep the last noise model that fitted
+            problem.noise = previous
+            break
+        candidates = refits
+        chosen = min(candidates, key=lambda c: c["rss"])
+    resid = y - problem.model(chosen["p"], chosen["counts"], False)[0]
+    if white_rss is not None and float(resid @ resid) > 1.05 * white_rss:
+        problem.noise = white_noise(resid)
+        problem.noise_rejected = True
+        return first
+    return candidates, chosen
+
+
+def _against_bootstrap(lb: dict, boot_q) -> dict:
+    """Judge a quantised record's Ljung–Box Q against refits of exactly-modelled records.
+
+    Quantisation error follows the signal, so an exact model leaves non-white residuals
+    too; the bootstrap replicates (the fitted response plus the noise, re-quantised) give
+    Q's distribution under "the model is right". Not white: Q above their mean + 4 sd and
+    the χ² test rejecting too.
+    """
+    if not boot_q:
+        return lb
+    q = np.asarray(boot_q, float)
+    limit = float(np.mean(q) + 4.0 * np.std(q, ddof=1))
+    out = dict(lb)
+    out["test"] = "ljung-box against the quantisation bootstrap"
+    out["bootstrap_limit"] = limit
+    out["p_value"] = float((1 + np.sum(q >= lb["statistic"])) / (1 + q.size))
+    # quantisation can only add correlation: white if either test finds it white
+    out["p_value"] = max(out["p_value"], float(lb["p_value"]))
+    out["white"] = bool(lb["white"] or lb["statistic"] <= limit)
+    return out
+
+
+def assess(problem, chosen, p, *, run_structures: bool | None = None) -> dict:
+    """Whiteness, nested structures and the covariance kind of a free-decay fit.
+
+    Parameters
+    ----------
+    problem : output_error._Problem
+        The fit problem with its final noise model.
+    chosen : dict
+        The chosen candidate (``counts``, ``sol``).
+    p : ndarray, shape (k,)
+        The (candidate-averaged) estimate.
+    run_structures : bool, optional
+        Force the structure test on or off; default: short records (cheap), a rejected
+        or high-order (>= 4) noise model, or prewhitened residuals that are not white.
+
+    Returns
+    -------
+    dict
+        ``whiteness`` (Ljung–Box of the prewhitened residuals), ``raw_whiteness``,
+        ``structures`` (the test or None), ``richer`` (the full-record fit of a chosen
+        richer structure, or None), ``notes``.
+    """
+    y = (problem.y[0] if len(problem.y) == 1 else np.concatenate(problem.y))
+    raw = y - problem.model(p, chosen["counts"], False)[0]
+    noise = problem.noise
+    white_r = noise.whiten(raw, problem.segments)
+    lb = _against_bootstrap(ljung_box(white_r, fitted=noise.order),
+                            getattr(problem, "boot_q", None))
+    lb_raw = ljung_box(raw)
+    if float(np.sqrt(np.mean(raw**2))) <= 1e-9 * max(float(np.ptp(y)), 1e-300):
+        # a noise-free record fitted to round-off: nothing to test
+        lb = dict(lb, white=True, test="none: residuals at round-off (exact fit)")
+        run_structures = False
+    if run_structures is None:
+        # cheap, or a sign of a misfit: an AR model that was rejected, or of high order
+        # (a low-order one fitted to white-after-whitening residuals is sensor colour)
+        run_structures = (problem.n <= 1500 or getattr(problem, "noise_rejected", False)
+                          or not lb["white"]
+                          or (not lb_raw["white"] and noise.order >= 4))
+    out = {"whiteness": lb, "raw_whiteness": lb_raw, "structures": None, "richer": None,
+           "raw_residual": raw, "white_residual": white_r}
+    if not run_structures:
+        return out
+    test = structure_test(problem.t, y, p, chosen["counts"], problem.per, noise.order,
+                          passive=problem.passive)
+    out["structures"] = test
+    name = test["comparison"]["chosen"]
+    if name == BASE:
+        return out
+    add_drift, add_quad = test["options"][name]
+    theta = test["fits"][name]["theta"]
+    counts = test["counts"]
+    if problem.n <= 100_000:  # refit on every sample, the noise model re-estimated
+        segs = problem.segments
+        for _ in range(2):
+            raw_s = y - structure_model(problem.t, theta, counts, problem.per, add_drift,
+                                        add_quad)
+            nm = fit_noise_model(raw_s, segments=segs, n_params=theta.size)
+            fit = fit_structure(problem.t, y, theta, counts, problem.per, add_drift,
+                                add_quad, nm, segs, passive=problem.passive)
+            theta = fit["theta"]
+        fit["noise"] = nm
+        fit["step"] = 1
+    else:
+        fit = dict(test["fits"][name])
+        fit["step"] = test["step"]
+    fit["name"] = name
+    fit["counts"] = counts
+    fit["layout"] = _layout(len(problem.t), problem.per, add_drift, add_quad)
+    fit["whiteness"] = ljung_box(fit["white_residual"], fitted=fit["noise"].order)
+    out["richer"] = fit
+    return out

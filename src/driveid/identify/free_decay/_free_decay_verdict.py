@@ -1,0 +1,200 @@
+"""Verdicts of the free-decay output-error fit: physics warnings, adequacy, error-bar kind.
+
+Helpers of :mod:`driveid.identify.free_decay.output_error` (issue 24); see
+:mod:`driveid.identify.free_decay._free_decay_structures` for the structures and noise models.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from driveid.identify.core._adequacy import Adequacy
+from driveid.identify.core._noise import hac_covariance
+from driveid.identify.free_decay._free_decay_structures import inadequacy_notes, structure_model
+
+__all__ = ["adequacy_of", "apply_verdict", "physics_warnings", "structure_fitted"]
+
+
+def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
+    """Take a chosen richer structure's fit, or widen inadequate error bars (sandwich).
+
+    Parameters
+    ----------
+    problem : output_error._Problem
+        The fit problem with its final noise model.
+    verdict : dict
+        :func:`~driveid.identify.free_decay._free_decay_structures.assess` output.
+    candidates : list of dict
+        Stop-count candidates (``p``, ``counts``, ``sol``, ``cov``, ``chi2``).
+    p : ndarray, shape (k,)
+        Candidate-averaged estimate.
+    cov : ndarray, shape (k, k)
+        Its covariance.
+    quantum : float or None
+        Encoder step [m or rad] (bootstrap error bars) or None.
+    combine : callable
+        ``combine(candidates) -> (p, cov, weights)``.
+
+    Returns
+    -------
+    (ndarray, ndarray, str)
+        Estimate, covariance and its kind (``prewhitened``, ``bootstrap``, ``sandwich``).
+    """
+    richer = verdict["richer"]
+    if richer is not None:
+        theta, jac = richer["theta"], richer["jac"]
+        n_w = richer["white_residual"].size
+        s2_w = richer["rss"] / max(n_w - theta.size, 1)
+        try:
+            cov_s = np.linalg.inv(jac.T @ jac) * s2_w
+        except np.linalg.LinAlgError:
+            cov_s = np.full((theta.size, theta.size), np.nan)
+        if not richer["whiteness"]["white"]:
+            cov_s = hac_covariance(jac, richer["white_residual"])
+            return theta, cov_s, "sandwich"
+        return theta, cov_s, "prewhitened"
+    if verdict["whiteness"]["white"] or quantum is not None:
+        return p, cov, "bootstrap" if quantum is not None else "prewhitened"
+    sol = min(candidates, key=lambda c: c["rss"])["sol"]
+    if sol.jac is None:  # long record: no whole Jacobian for the sandwich
+        return p, cov, "prewhitened (sandwich not formed above 131 072 samples)"
+    r_w = problem.noise.whiten(np.concatenate(problem.y)
+                               - problem.model(sol.x, min(candidates, key=lambda c: c["rss"])
+                                               ["counts"], False)[0], problem.segments)
+    hac = hac_covariance(sol.jac, r_w)
+    for c in candidates:
+        c["cov"] = hac
+    p, cov, _ = combine(candidates)
+    return p, cov, "sandwich"
+
+
+def structure_fitted(problem, richer):
+    """Return the fitted response of a richer structure on every fitted sample.
+
+    Parameters
+    ----------
+    problem : output_error._Problem
+        The fit problem.
+    richer : dict
+        The structure's fit (``theta``, ``counts``, ``layout``).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Position [m or rad].
+    """
+    lay = richer["layout"]
+    return structure_model(problem.t, richer["theta"], richer["counts"], problem.per,
+                           "drift" in lay, "quad" in lay)
+
+
+def physics_warnings(params, at_bound, x_ref, u, zeta_bound):
+    """Warnings for estimates at a bound or outside physics, each naming the likely cause.
+
+    Parameters
+    ----------
+    params : dict
+        Name -> Parameter of the estimate.
+    at_bound : list of str
+        Names at their bound.
+    x_ref : float
+        Spring zero [m or rad].
+    u : dict
+        Units by kind (``x``, ``c`` ...).
+    zeta_bound : float
+        Largest damping ratio of the model [-].
+
+    Returns
+    -------
+    list of str
+    """
+    warnings = []
+    for name in ("zeta_plus", "zeta_minus"):
+        z = params[name].value
+        if name in at_bound:
+            warnings.append(
+                f"{name} is at its bound 0 (95 % one-sided upper limit "
+                f"{z + 1.645 * params[name].stderr:.3g}): the record shows no viscous damping "
+                "in that direction; Coulomb friction or an amplitude-dependent damping the "
+                "model lacks may be taking its place (driveid identify hilbert shows the "
+                "damping against amplitude)")
+        elif not 0.0 < z < zeta_bound - 1e-6:
+            warnings.append(
+                f"{name} = {z:.4g} is outside (0, 1): the decay is not an underdamped passive "
+                "oscillation (negative damping from feedback, or a bad fit); check the record")
+    tkm = params["theta_k_mean"]
+    if "theta_k_mean" in at_bound:
+        warnings.append(
+            f"theta_k_mean is at its bound 0 {u['x']}: no Coulomb friction is resolved (95 % "
+            f"one-sided upper limit {1.645 * tkm.stderr:.3g} {u['x']}); a decay that slows "
+            "less than exponentially at small amplitude (quadratic damping) pushes it there")
+    tkd = params["theta_k_delta"]
+    if x_ref == 0.0 and abs(tkd.value) > abs(tkm.value) + 2 * tkd.stderr:
+        # |fk_delta| > fk_mean means one direction's kinetic friction pushes: far more
+        # likely an encoder zero away from the spring's rest position than physics
+        warnings.append(
+            f"|fk_delta| exceeds fk_mean ({tkd.value:.3g} vs {tkm.value:.3g} {u['x']} as "
+            "theta_k): one direction's friction would push; an offset between the encoder "
+            "zero and the spring zero looks the same (not identifiable from a free decay) - "
+            "pass the spring zero with x_ref (CLI: --x-ref)")
+    return warnings
+
+
+def adequacy_of(verdict, problem, p, covariance_kind):
+    """Return the Adequacy record (JSON form) and its warnings.
+
+    Parameters
+    ----------
+    verdict : dict
+        :func:`~driveid.identify.free_decay._free_decay_structures.assess` output.
+    problem : output_error._Problem
+        The fit problem.
+    p : ndarray, shape (k,)
+        The estimate.
+    covariance_kind : str
+        How the error bars were formed.
+
+    Returns
+    -------
+    (dict, list of str)
+        Adequacy and warnings (inadequate: what the residuals show, the command that fits it).
+    """
+    richer = verdict["richer"]
+    test = verdict["structures"]
+    white = richer["whiteness"] if richer is not None else verdict["whiteness"]
+    notes, warnings = [], []
+    if test is not None:
+        notes.append(test["comparison"]["reason"])
+    if not white["white"]:
+        if richer is not None:
+            w_res, raw = richer["white_residual"], richer["residual"]
+        else:
+            raw, w_res = verdict["raw_residual"], verdict["white_residual"]
+        dt = float(np.median(np.diff(problem.t[0][:256])))
+        omega_d = float(p[0]) * math.sqrt(max(1.0 - float(p[1]) ** 2, 1e-12))
+        found = inadequacy_notes(w_res, raw, 1.0 / dt, omega_d,
+                                 test["comparison"] if test else None)
+        notes += found
+        warnings.append(
+            "no structure tried (viscous + Coulomb, + drift, + quadratic damping) explains "
+            "this record: its prewhitened residuals are not white (Ljung-Box p = "
+            f"{white['p_value']:.2g}); " + "; ".join(found)
+            + f"; error bars are {covariance_kind}")
+    adequacy = Adequacy(whiteness=white,
+                        structures=_json_structures(test),
+                        covariance=covariance_kind, notes=tuple(notes)).to_dict()
+    # adequate: the structure finally fitted (the richer one where chosen) leaves white
+    # prewhitened residuals
+    adequacy["adequate"] = bool(white["white"])
+    return adequacy, warnings
+
+
+def _json_structures(test):
+    """Return the structure comparison in JSON form, with its decimation."""
+    if test is None:
+        return None
+    comp = dict(test["comparison"])
+    comp["decimation"] = int(test["step"])
+    return comp

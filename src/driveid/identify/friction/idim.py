@@ -1,0 +1,811 @@
+"""Inverse-dynamic-model least squares (IDIM-LS) with Coulomb + viscous friction.
+
+The model is the rigid-body equation of motion solved for the applied force,
+
+    u = M·a + Fv·v + Fc·sgn(v) + offset                                (symmetric)
+    u = M·a + Fv+·v⁺ + Fc+·[v>0] + Fv−·v⁻ − Fc−·[v<0]                    (asymmetric)
+
+(EMPS benchmark, Janot, Gautier & Brunot 2019, eq. 1 and §4.2; the thesis's equation of
+motion (2.155) with ``K = 0``), which is linear in the parameters. Velocity and
+acceleration come from a zero-phase filtered position and central differences; the
+observation matrix and the force are decimated (low-pass + downsample) before ordinary
+least squares, exactly the benchmark's recipe. In the asymmetric model
+``v⁺ = max(v, 0)``, ``v⁻ = min(v, 0)``; all friction parameters are positive for a
+dissipative drive.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy import signal as sps
+
+from driveid.errors import IdentificationError, ParameterError, RecordError
+from driveid.identify.core._expressions import evaluate_expression, parse_expression
+from driveid.identify.core.estimate import Estimate, Parameter
+from driveid.identify.friction._idim_noise import _held, _lag1, _solve
+from driveid.io.record import Record
+from driveid.signal.differentiate import differentiate
+from driveid.signal.steady import standstill_mask
+
+__all__ = [
+    "estimate_idim",
+    "validate_idim",
+    "simulate_idim_model",
+    "IdimValidation",
+    "IdimSimulation",
+    "idim_regressor",
+    "MODELS",
+]
+
+#: Friction models understood by :func:`estimate_idim`.
+MODELS = ("symmetric", "asymmetric")
+
+
+@dataclass(frozen=True)
+class IdimValidation:
+    """Cross-test of an IDIM estimate on another record (same θ, new observation matrix).
+
+    Attributes
+    ----------
+    relative_error : float
+        ``100·||u − Wθ|| / ||u||`` [%] on the decimated data.
+    error_norm : float
+        ``||u − Wθ||`` [N or N·m].
+    cond : float
+        Condition number of the new observation matrix [-].
+    t : ndarray, shape (m,)
+        Decimated sample times [s].
+    measured : ndarray, shape (m,)
+        Decimated measured force [N or N·m].
+    predicted : ndarray, shape (m,)
+        ``Wθ`` [N or N·m].
+    """
+
+    relative_error: float
+    error_norm: float
+    cond: float
+    t: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the scalar results as a JSON-ready dict."""
+        return {
+            "relative_error_pct": float(self.relative_error),
+            "error_norm": float(self.error_norm),
+            "cond": float(self.cond),
+            "n": int(self.t.size),
+        }
+
+
+def _names(model: str, translational: bool, force: str | None = None
+           ) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    inertia = "M" if translational else "J"
+    lin = "m" if translational else "rad"
+    force = force or ("N" if translational else "N·m")
+    m_unit = "kg" if translational else "kg·m²"
+    if model == "symmetric":
+        names = (inertia, "Fv", "Fc", "offset")
+        units = (m_unit, f"{force}·s/{lin}", force, force)
+    else:
+        names = (inertia, "Fv_plus", "Fc_plus", "Fv_minus", "Fc_minus")
+        units = (m_unit, f"{force}·s/{lin}", force, f"{force}·s/{lin}", force)
+    return names, units
+
+
+def _check_settings(model: str, cutoff_hz: float, decimate: int, edge: int) -> None:
+    if model not in MODELS:
+        raise ParameterError(f"model must be one of {MODELS}; got {model!r}")
+    if int(decimate) != decimate or decimate < 1:
+        raise ParameterError(f"decimate must be an integer >= 1 [-]; got {decimate}")
+    if int(edge) != edge or edge < 0:
+        raise ParameterError(f"edge must be an integer >= 0 [samples]; got {edge}")
+    if not (math.isfinite(cutoff_hz) and cutoff_hz > 0):
+        raise ParameterError(f"cutoff_hz must be a positive frequency [Hz]; got {cutoff_hz}")
+
+
+def idim_regressor(
+    record: Record,
+    *,
+    model: str = "symmetric",
+    cutoff_hz: float = 100.0,
+    decimate: int = 10,
+    edge: int = 50,
+    offset: float | None = None,
+    load: str | np.ndarray | None = None,
+    regressors: Sequence[str] = (),
+    min_speed: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Build the decimated observation matrix and force of the IDIM model.
+
+    Parameters
+    ----------
+    record : Record
+        Position ``x`` [m or rad] and force ``u`` [N or N·m].
+    model : {"symmetric", "asymmetric"}
+        Friction model (see module docstring).
+    cutoff_hz : float
+        Zero-phase 4th-order Butterworth cut-off on the position [Hz]; EMPS uses 100.
+    decimate : int
+        Decimation factor of observation matrix and force [-]; 1 disables it. Uses
+        :func:`scipy.signal.decimate` (order-8 Chebyshev I, zero phase) like MATLAB.
+    edge : int
+        Samples dropped at both ends after differentiation [-]; at least
+        ``3·fs/cutoff_hz`` are dropped (the filter's start-up transient).
+    offset : float or None
+        Known force offset [N or N·m], subtracted from the force (its column is then
+        dropped); ``None`` estimates it (symmetric model).
+    load : str or array_like, shape (n,), optional
+        Known load force [N or N·m] subtracted from ``u``: an array, or an expression of
+        ``t x v a u`` (see :mod:`driveid.identify.core._expressions`), e.g. ``"1.47*sin(x)"``.
+    regressors : sequence of str
+        Extra columns with unknown coefficients, expressions of ``t x v a u`` (filtered
+        position, velocity, acceleration), e.g. ``("sin(x)",)`` for gravity ``m g l sin q``.
+    min_speed : float or None
+        Decimated rows slower than this are dropped [m/s or rad/s]; ``None`` or 0 keeps
+        them. Rows at standstill are always dropped: there the force is held by static
+        friction, which the model does not describe, and the sign of a velocity that is
+        zero up to filter ripple is arbitrary. Standstill: the raw position moves by at
+        most two encoder counts (its smallest step), or by at most 8 noise sd (from its
+        second differences) on a noisy sensor, within ``fs/cutoff_hz`` samples, widened by
+        twice that on each side (the zero-phase filter smears the stop).
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(W, y, t, v)``: W shape (m, p) [mixed units], force y shape (m,) [N or N·m],
+        times t shape (m,) [s], decimated velocity v shape (m,) [m/s or rad/s].
+
+    Raises
+    ------
+    RecordError
+        If the record has no force column or is too short after dropping the edges.
+    ParameterError
+        If a setting or expression is invalid.
+    """
+    _check_settings(model, cutoff_hz, decimate, edge)
+    if record.u is None:
+        raise RecordError(
+            "IDIM needs the applied force or torque u; read the record with a force column "
+            "(CLI: --force NAME); got a record with columns "
+            f"{list(record.columns)}"
+        )
+    # the Butterworth filter, the differences and the decimation assume one sampling interval;
+    # an uneven clock (a robot log with 1-13 ms steps) is put on the median grid first, warned
+    record = record.resampled_uniform(
+        purpose="IDIM's zero-phase filter, differentiation and decimation")
+    fs = record.fs
+    if not cutoff_hz < fs / 2:
+        raise ParameterError(
+            f"cutoff_hz must be below fs/2 = {fs / 2:g} Hz; got {cutoff_hz}"
+        )
+    xf, v, a = differentiate(record.x, fs, cutoff_hz=cutoff_hz)
+    u = np.asarray(record.u, float)
+    values = {"t": record.t, "x": xf, "v": v, "a": a, "u": u}
+    y = u.copy()
+    if load is not None:
+        y = y - (evaluate_expression(load, values) if isinstance(load, str)
+                 else _per_sample(load, record.n, "load"))
+    if offset is not None:
+        y -= float(offset)  # y is ours (a copy of u): in place
+    extra = [evaluate_expression(r, values) for r in regressors]
+    del values, xf  # only expressions use the filtered position
+    # the zero-phase filter's start-up transient lasts a few 1/cutoff_hz
+    cut = max(int(edge), math.ceil(3.0 * fs / cutoff_hz))
+    sl = slice(cut, record.n - cut)
+    v, a, y, t = v[sl], a[sl], y[sl], record.t[sl]
+    extra = [c[sl] for c in extra]
+    min_len = 27 * int(decimate) if decimate > 1 else 8  # decimate's filtfilt padding
+    if v.size < min_len:
+        raise RecordError(
+            f"record too short for IDIM after dropping {cut} edge samples and decimating "
+            f"by {decimate}; need >= {min_len} samples; got {v.size}"
+        )
+    # one column at a time: decimating each equals decimating the stacked n x p matrix,
+    # which held p full columns plus the filter's padded copies (issue 12)
+    if model == "symmetric":
+        cols = [lambda: a, lambda: v, lambda: np.sign(v)] + (
+            [lambda: np.ones_like(v)] if offset is None else [])
+    else:
+        cols = [lambda: a, lambda: np.where(v > 0, v, 0.0), lambda: (v > 0).astype(float),
+                lambda: np.where(v < 0, v, 0.0), lambda: -(v < 0).astype(float)]
+    cols += [lambda c=c: c for c in extra]
+    if decimate > 1:
+        W = np.column_stack([sps.decimate(make(), int(decimate)) for make in cols])
+        y = sps.decimate(y, int(decimate))
+        v_dec = v[:: int(decimate)]
+        t = t[:: int(decimate)]
+    else:
+        W = np.column_stack([make() for make in cols])
+        v_dec = v
+    min_speed = 0.0 if min_speed is None else float(min_speed)
+    if not (math.isfinite(min_speed) and min_speed >= 0):
+        raise ParameterError(f"min_speed must be >= 0 [m/s or rad/s]; got {min_speed}")
+    still = standstill_mask(np.asarray(record.x, float), max(1, round(fs / cutoff_hz)))[sl]
+    if decimate > 1:
+        still = still[:: int(decimate)]
+    moving = ~still & (np.abs(v_dec) > min_speed)
+    return W[moving], y[moving], t[moving], v_dec[moving]
+
+
+def _per_sample(value: Any, n: int, name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=float).ravel()
+    if arr.size == 1:
+        return np.full(n, float(arr[0]))
+    if arr.size != n or not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must hold one finite value per sample ({n}) [N or "
+                             f"N·m]; got {arr.size} values")
+    return arr
+
+
+def _as_records(records: Record | Sequence[Record]) -> list[Record]:
+    recs = [records] if isinstance(records, Record) else list(records)
+    if not recs or not all(isinstance(r, Record) for r in recs):
+        raise ParameterError("records must be a Record or a non-empty sequence of Records; "
+                             f"got {type(records).__name__}")
+    # once here, so that the cut-off check's refits do not warn again
+    return [r.resampled_uniform(purpose="IDIM's zero-phase filter, differentiation and "
+                                "decimation") for r in recs]
+
+
+def _stack(recs: list[Record], loads: list[Any], settings: dict[str, Any]
+           ) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]], int]:
+    blocks = [idim_regressor(r, load=ld, **settings) for r, ld in zip(recs, loads, strict=True)]
+    return blocks, blocks[0][0].shape[1]
+
+
+def estimate_idim(
+    records: Record | Sequence[Record],
+    *,
+    model: str = "symmetric",
+    cutoff_hz: float = 100.0,
+    decimate: int = 10,
+    edge: int = 50,
+    offset: float | None = None,
+    load: str | np.ndarray | Sequence[np.ndarray] | None = None,
+    regressors: Sequence[str] = (),
+    weights: str | Sequence[float] | None = None,
+    min_speed: float | None = None,
+    sensitivity: bool = True,
+    noise: str = "ar",
+) -> Estimate:
+    """Estimate inertia, viscous and Coulomb friction (and offset) by IDIM-LS.
+
+    Parameters
+    ----------
+    records : Record or sequence of Record
+        Position ``x`` [m or rad] and applied force ``u`` [N or N·m]; several records (a
+        campaign of runs) are each filtered and differentiated on their own and their rows
+        stacked into one least-squares problem (EMPS: ``DATA_EMPS.mat``, force =
+        gtau·vir).
+    model : {"symmetric", "asymmetric"}
+        ``"symmetric"``: parameters M (or J), Fv, Fc, offset. ``"asymmetric"``: M,
+        Fv_plus, Fc_plus, Fv_minus, Fc_minus and no offset (EMPS §4.2); a direction the
+        runs never move in is reported as ``nan`` with a warning.
+    cutoff_hz : float
+        Zero-phase 4th-order Butterworth cut-off on the position [Hz] (EMPS: 5 × the
+        20 Hz position-loop bandwidth = 100 Hz).
+    decimate : int
+        Decimation factor of observation matrix and force [-] (EMPS: 10).
+    edge : int
+        Samples dropped at each end of every record after differentiation [-] (EMPS: 50).
+    offset : float or None
+        Known force offset [N or N·m] (``0.0`` for a drive without one): makes runs in one
+        direction identifiable; reported as a fixed parameter. ``None`` estimates it
+        (symmetric model only; needs both directions).
+    load : str, array_like or sequence of array_like, optional
+        Known load [N or N·m] subtracted from the force: an expression of ``t x v a u``
+        (e.g. gravity ``"1.47*sin(x)"``), one array for a single record, or one array per
+        record.
+    regressors : sequence of str
+        Extra regressors with unknown coefficients, expressions of ``t x v a u``; the
+        coefficient of ``"sin(x)"`` is reported as ``k[sin(x)]`` [force unit].
+    weights : None, "auto" or sequence of float
+        Row weight per record [-]: ``None`` equal; a sequence, one relative weight per
+        record (inverse force-noise variance); ``"auto"`` two passes, weighting each record
+        by the inverse of its own residual variance.
+    min_speed : float or None
+        Rows slower than this are also dropped [m/s or rad/s]; standstill rows (static
+        friction holds the force) always are, see :func:`idim_regressor`.
+    sensitivity : bool
+        Also estimate at ``cutoff_hz/√2`` and ``cutoff_hz·√2`` (below 0.45 fs) and warn
+        when the inertia moves by more than its standard error (and more than 1 %).
+    noise : {"ar", "white"}
+        ``"ar"`` (default): feasible generalised least squares with an AR(p) model of the
+        force residual (order by BIC, fitted per contiguous run), the regressors and force
+        prewhitened and the fit repeated; white residuals give exactly the ordinary
+        least-squares fit. ``"white"``: ordinary least squares with white-noise error bars
+        (the EMPS benchmark's published recipe).
+
+    Returns
+    -------
+    Estimate
+        ``M`` [kg] (``J`` [kg·m²] when x is not in m), ``Fv`` [N·s/m], ``Fc`` [N],
+        ``offset`` [N] (fixed when given) or the asymmetric set, and ``k[<expr>]``, each
+        with the standard error ``sqrt(σ²·diag((WᵀΛW)⁻¹))``, ``σ² = eᵀΛe/(m − p)``.
+        ``covariance`` of the estimated parameters (from the prewhitened regressors; the
+        Newey–West sandwich when even the prewhitened residuals are not white).
+        Diagnostics: ``noise_model`` (order, AR coefficients, ``n_eff``), ``adequacy``
+        (Ljung–Box whiteness of the prewhitened residuals, their cross-correlation with the
+        prewhitened velocity, covariance kind, notes), ``stderr_white`` (the ordinary
+        least-squares standard errors, for comparison), ``cond``,
+        ``relative_error_pct`` (``100·||e||/||y||``), ``error_norm``, ``error_std``,
+        ``n``, ``n_records``, ``residual_lag1`` (lag-1 autocorrelation of the residual;
+        the noise model accounts for it), ``inertia_share_pct`` (the part of the
+        force that ``M·a`` explains), ``cutoff_sensitivity`` (inertia at the three
+        cut-offs), ``unphysical`` (names with a sign impossible for a passive drive),
+        ``at_bound`` (M, Fv, Fc held at 0 by the bounded fit: the unconstrained value and
+        the one-sided 95 % upper limit) and
+        the settings. ``data_used`` holds decimated ``t``, ``force``, ``predicted``,
+        ``velocity`` and ``record_index``.
+
+    Raises
+    ------
+    RecordError
+        If a record lacks force or is too short.
+    IdentificationError
+        If the drive never moves, moves in one direction only with an unknown offset, or
+        the observation matrix is rank-deficient.
+    ParameterError
+        If a setting or expression is invalid.
+
+    Notes
+    -----
+    Force residuals of real drives are coloured (unmodelled dynamics, the loop's own
+    noise, the decimation filter): ordinary least squares stays consistent but its
+    white-noise error bars are too small by up to ``sqrt(n/n_eff)``. With ``noise="ar"``
+    the residual ``e`` of each contiguous run of decimated rows is modelled as AR(p),
+    ``A(q) e = w``, and θ re-estimated from ``A(q) y = A(q) W θ + w`` (feasible GLS,
+    Ljung 1999 §7.2; two passes), with covariance ``σ_w² (W_wᵀ W_w)⁻¹`` of the
+    prewhitened ``W_w`` (:mod:`driveid.identify.core._noise`).
+
+    The fit is bounded by physics (M > 0, Fv >= 0, Fc >= 0 and their ``_plus``/``_minus``
+    forms): when the unconstrained estimate crosses a bound, bounded least squares
+    (:func:`scipy.optimize.lsq_linear`) on the same rows holds it at 0 and refits the
+    others; ``diagnostics["at_bound"]`` and a warning say so.
+
+    Ordinary least squares is unbiased only if the force noise is uncorrelated with the
+    regressors; in closed loop it is not, but the benchmark shows the bias is small when
+    the filter cut-off is well above the loop bandwidth (Janot et al. 2019, §3.3). Noise
+    in the position enters the acceleration column amplified by ``(2π f_c)²`` and biases
+    the inertia towards 0 (errors in variables); the cut-off check exposes it. The
+    inertia is identifiable only where the acceleration carries a visible part of the
+    force: steps, reversals and sine sweeps do, constant speeds do not.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from driveid.io.record import Record
+    >>> t = np.arange(4000) / 1000.0
+    >>> x = 0.1 * np.sin(2 * np.pi * 0.5 * t)
+    >>> v = 0.1 * np.pi * np.cos(np.pi * t); a = -0.1 * np.pi**2 * np.sin(np.pi * t)
+    >>> noise = 0.3 * np.random.default_rng(0).standard_normal(t.size)
+    >>> u = 2.0 * a + 3.0 * v + 1.5 * np.sign(v) + 0.2 + noise
+    >>> rec = Record(t=t, x=x, u=u, meta={"units": {"x": "m", "u": "N"}})
+    >>> est = estimate_idim(rec, decimate=1, cutoff_hz=50.0, sensitivity=False)
+    >>> abs(est.value("M") - 2.0) < 0.05, abs(est.value("Fv") - 3.0) < 0.2
+    (True, True)
+    """
+    recs = _as_records(records)
+    if load is None and not offset and all(r.u is not None and not np.any(r.u) for r in recs):
+        # nothing to fit: θ = 0 explains a zero force exactly (issue 28: was a division by 0)
+        raise IdentificationError(
+            "IDIM fits the applied force, and the force of every record is all zero (a free "
+            "decay or an unpowered run?); give the column holding the drive's force or "
+            "torque (--force COLUMN), or fit a free decay with identify logdec; got "
+            "max |u| = 0")
+    if offset is not None and not math.isfinite(float(offset)):
+        raise ParameterError(f"offset must be a finite force [N or N·m] or None; got {offset}")
+    loads = _loads(load, recs)
+    regressors = tuple(regressors)
+    for r in regressors:
+        parse_expression(r)
+    settings = {"model": model, "cutoff_hz": float(cutoff_hz), "decimate": decimate,
+                "edge": edge, "offset": offset, "regressors": regressors,
+                "min_speed": min_speed}
+    blocks, p = _stack(recs, loads, settings)
+    v_all = np.concatenate([b[3] for b in blocks])
+    _check_motion(v_all, model, offset)
+    w = _weights(weights, len(recs))
+    support = _support(v_all, model, p)
+    if noise not in ("ar", "white"):
+        raise ParameterError(f"noise must be 'ar' or 'white'; got {noise!r}")
+    positive = np.array([True] * (5 if model == "asymmetric" else 3) + [False] * (
+        p - (5 if model == "asymmetric" else 3)))
+    theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise, positive=positive)
+    if weights == "auto":
+        var = np.array([max(float(np.mean(e[i] ** 2)), 1e-300) for i in range(len(blocks))])
+        w = 1.0 / var
+        theta, cov, e, W, y, keep, fit = _solve(blocks, w, support, noise=noise,
+                                                positive=positive)
+    first = recs[0]
+    translational = first.units.get("x", "rad") == "m"
+    force_unit = first.units.get("u", "N" if translational else "N·m")
+    names, units = _names(model, translational, force_unit)
+    if offset is not None and model == "symmetric":
+        names, units = names[:-1], units[:-1]
+    names = names + tuple(f"k[{r}]" for r in regressors)
+    units = units + tuple(f"{force_unit}/({r})" for r in regressors)
+    stderr = np.sqrt(np.diag(cov))
+    params: dict[str, Parameter] = {}
+    est_names: list[str] = []
+    for j, (nm, un) in enumerate(zip(names, units, strict=True)):
+        if keep[j]:
+            params[nm] = Parameter(float(theta[j]), float(stderr[j]), un)
+            est_names.append(nm)
+        else:
+            params[nm] = Parameter(math.nan, math.nan, un)
+    if offset is not None:
+        params["offset"] = Parameter(float(offset), math.nan, force_unit, fixed=True)
+    y_all = np.concatenate(y)
+    e_all = np.concatenate(e)
+    pred = y_all - e_all
+    err_norm = float(np.linalg.norm(e_all))
+    lag1 = _lag1(e)
+    inertia = names[0]
+    a_part = np.concatenate([b[0][:, 0] for b in blocks]) * params[inertia].value
+    diagnostics: dict[str, Any] = {
+        "model": model,
+        "cond": float(np.linalg.cond(W[:, keep])),
+        "relative_error_pct": 100.0 * err_norm / float(np.linalg.norm(y_all)),
+        "error_norm": err_norm,
+        "error_std": float(np.sqrt(err_norm**2 / max(y_all.size - int(keep.sum()), 1))),
+        "n": int(y_all.size),
+        "n_records": len(recs),
+        "residual_lag1": lag1,
+        "inertia_share_pct": 100.0 * float(np.linalg.norm(a_part) / np.linalg.norm(y_all)),
+        "cutoff_hz": float(cutoff_hz),
+        "decimate": int(decimate),
+        "edge": int(edge),
+        "min_speed": min_speed,
+        "offset_fixed": None if offset is None else float(offset),
+        "regressors": list(regressors),
+        "load": load if isinstance(load, str) else (None if load is None else "array"),
+        "weights": [float(x) for x in w],
+        "source": str(first.meta.get("source", "")),
+        "force_unit": force_unit,
+        "noise": noise,
+        "noise_model": fit["noise_model"].to_dict(),
+        "adequacy": fit["adequacy"].to_dict(),
+        "stderr_white": {nm: float(s_) for nm, s_ in
+                         zip(est_names, np.sqrt(np.diag(fit["cov_white"])), strict=True)},
+    }
+    held = _held(fit, theta, names, units, stderr)
+    warnings = _warnings(params, names, keep, diagnostics, model) + fit["warnings"]
+    if held:
+        diagnostics["at_bound"] = {nm: entry for nm, (entry, _) in held.items()}
+        diagnostics["unphysical"] = sorted(set(diagnostics["unphysical"]) | set(held),
+                                           key=names.index)
+        warnings += [message for _, message in held.values()]
+    if sensitivity:
+        warnings += _cutoff_check(recs, loads, settings, w, params[inertia], inertia,
+                                  diagnostics, noise)
+    est = Estimate(
+        method=f"idim-ls-{model}",
+        params=params,
+        data_used={"t": np.concatenate([b[2] for b in blocks]), "force": y_all,
+                   "predicted": pred, "velocity": v_all,
+                   "record_index": np.concatenate([np.full(b[1].size, i)
+                                                   for i, b in enumerate(blocks)])},
+        diagnostics=diagnostics,
+        warnings=tuple(warnings),
+        covariance={"names": est_names, "matrix": cov[np.ix_(keep, keep)]},
+    )
+    return _plausibility(est)
+
+
+def _plausibility(est: Estimate) -> Estimate:
+    try:
+        from driveid.identify.core._plausibility import check_plausibility
+    except ImportError:
+        return est
+    out = check_plausibility(est)
+    return out if isinstance(out, Estimate) else est
+
+
+def _loads(load: Any, recs: list[Record]) -> list[Any]:
+    if load is None or isinstance(load, str):
+        return [load] * len(recs)
+    if len(recs) == 1 and np.ndim(load) == 1:
+        return [np.asarray(load, float)]
+    loads = list(load)
+    if len(loads) != len(recs):
+        raise ParameterError(f"load needs one array per record ({len(recs)}) [N or N·m]; "
+                             f"got {len(loads)}")
+    return loads
+
+
+def _weights(weights: Any, n: int) -> np.ndarray:
+    if weights is None or weights == "auto":
+        return np.ones(n)
+    w = np.asarray(weights, dtype=float).ravel()
+    if w.size != n or not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise ParameterError(f"weights must be 'auto' or one positive number per record "
+                             f"({n}) [-]; got {list(np.atleast_1d(weights))}")
+    return w
+
+
+def _support(v: np.ndarray, model: str, p: int) -> np.ndarray:
+    support = np.ones(p, bool)
+    if model == "asymmetric":
+        moving = np.abs(v) > 0.01 * float(np.max(np.abs(v)))
+        support[1:3] = np.count_nonzero(moving & (v > 0)) >= 5
+        support[3:5] = np.count_nonzero(moving & (v < 0)) >= 5
+    return support
+
+
+def _warnings(params: dict[str, Parameter], names: tuple[str, ...], keep: np.ndarray,
+              diag: dict[str, Any], model: str) -> list[str]:
+    out = []
+    missing = [nm for nm, k in zip(names, keep, strict=True) if not k]
+    if missing:
+        out.append(f"{', '.join(missing)} not identifiable: the runs never excite them "
+                   "(no motion in that direction); add runs in the other direction")
+    if diag["cond"] > 1e3:
+        out.append(f"observation matrix is ill-conditioned (cond = {diag['cond']:.3g}); the "
+                   "excitation does not separate the parameters well")
+    inertia = names[0]
+    pj = params[inertia]
+    if math.isfinite(pj.stderr) and (pj.value == 0 or pj.stderr > 0.1 * abs(pj.value)):
+        out.append(
+            f"inertia {inertia} is poorly identified ({pj.value:.4g} ± {pj.stderr:.2g}; "
+            f"M·a explains {diag['inertia_share_pct']:.2g} % of the force): the runs lack "
+            "acceleration; add steps, reversals or a sine sweep")
+    unphysical = []
+    for nm in names:
+        p = params[nm]
+        physical_positive = nm == inertia or nm.startswith(("Fv", "Fc"))
+        if physical_positive and math.isfinite(p.value) and p.value < 0:
+            unphysical.append(nm)
+            sig = "significantly " if p.value < -2 * p.stderr else ""
+            out.append(
+                f"{nm} = {p.value:.4g} ± {p.stderr:.2g} is {sig}negative, which a passive "
+                "drive cannot have: the model misses an effect of the data (backlash, "
+                "compliance, stiction, a load or an offset), or the excitation is too weak")
+    diag["unphysical"] = unphysical
+    rel_se = [abs(p.stderr / p.value) for nm, p in params.items()
+              if not p.fixed and math.isfinite(p.value) and p.value != 0]
+    if any(r > 0.3 for r in rel_se):
+        out.append("some relative standard errors exceed 30 %; excite the drive "
+                   "over a wider range of velocity and acceleration")
+    return out
+
+
+def _cutoff_check(recs: list[Record], loads: list[Any], settings: dict[str, Any],
+                  w: np.ndarray, pj: Parameter, inertia: str, diag: dict[str, Any],
+                  noise: str = "white") -> list[str]:
+    fc = settings["cutoff_hz"]
+    fs_min = min(r.fs for r in recs)
+    values = {fc: pj.value}
+    for f in (fc / math.sqrt(2.0), fc * math.sqrt(2.0)):
+        if f >= 0.45 * fs_min:
+            continue
+        try:
+            blocks, _ = _stack(recs, loads, {**settings, "cutoff_hz": f})
+            theta, *_ = _solve(blocks, w, _support(np.concatenate([b[3] for b in blocks]),
+                                                   settings["model"], blocks[0][0].shape[1]),
+                               noise=noise)
+        except (IdentificationError, RecordError, ParameterError):
+            continue
+        values[f] = float(theta[0])
+    diag["cutoff_sensitivity"] = {f"{k:.4g}": v for k, v in sorted(values.items())}
+    worst = max(abs(v - pj.value) for v in values.values())
+    # a floor of 1 %: smaller moves are below any use of an inertia value
+    if math.isfinite(pj.stderr) and worst > max(pj.stderr, 0.01 * abs(pj.value)):
+        span = ", ".join(f"{v:.4g} at {k:.3g} Hz" for k, v in sorted(values.items()))
+        return [f"inertia {inertia} depends on the filter cut-off by more than its standard "
+                f"error {pj.stderr:.2g} ({span}); choose the cut-off where it is flat, or "
+                "excite more acceleration"]
+    return []
+
+
+def validate_idim(estimate: Estimate, record: Record) -> IdimValidation:
+    """Cross-test: apply the estimated θ to another record's observation matrix.
+
+    Parameters
+    ----------
+    estimate : Estimate
+        Result of :func:`estimate_idim` (its settings are reused).
+    record : Record
+        Validation record with position [m or rad] and force [N or N·m] (EMPS:
+        ``DATA_EMPS_PULSES.mat``; published relative error 5.9824 %).
+
+    Returns
+    -------
+    IdimValidation
+        Relative error [%], error norm, condition number and the decimated signals.
+
+    Raises
+    ------
+    IdentificationError
+        If ``estimate`` did not come from :func:`estimate_idim`.
+    """
+    diag = estimate.diagnostics
+    if not estimate.method.startswith("idim-ls-") or "model" not in diag:
+        raise IdentificationError(
+            "validate_idim needs an estimate made by estimate_idim; got method "
+            f"{estimate.method!r}"
+        )
+    model = str(diag["model"])
+    load = diag.get("load")
+    if load == "array":
+        raise IdentificationError("validate_idim cannot reuse a load given as an array; "
+                                  "estimate with a load expression instead; got load=array")
+    W, y, t, _ = idim_regressor(record, model=model, cutoff_hz=float(diag["cutoff_hz"]),
+                                decimate=int(diag["decimate"]), edge=int(diag["edge"]),
+                                offset=diag.get("offset_fixed"), load=load,
+                                regressors=tuple(diag.get("regressors", ())),
+                                min_speed=diag.get("min_speed"))
+    theta = np.array([p.value for p in estimate.params.values() if not p.fixed])
+    theta = np.where(np.isfinite(theta), theta, 0.0)
+    pred = W @ theta
+    err = float(np.linalg.norm(y - pred))
+    return IdimValidation(
+        relative_error=100.0 * err / float(np.linalg.norm(y)),
+        error_norm=err,
+        cond=float(np.linalg.cond(W)),
+        t=t,
+        measured=y,
+        predicted=pred,
+    )
+
+
+@dataclass(frozen=True)
+class IdimSimulation:
+    """Direct closed-loop simulation of an IDIM model (EMPS §3.5 validation).
+
+    Attributes
+    ----------
+    t : ndarray, shape (n,)
+        Sample times [s].
+    x : ndarray, shape (n,)
+        Simulated position [m or rad].
+    u : ndarray, shape (n,)
+        Simulated actuator force [N or N·m].
+    position_error_pct, force_error_pct : float
+        ``100·||measured − simulated|| / ||measured||`` [%] for position and force.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    u: np.ndarray
+    position_error_pct: float
+    force_error_pct: float
+
+
+def simulate_idim_model(
+    estimate: Estimate,
+    record: Record,
+    *,
+    q_ref: np.ndarray,
+    kp: float,
+    kv: float,
+    gtau: float,
+    saturation: float = 10.0,
+    substeps: int = 10,
+    input_offset: np.ndarray | None = None,
+) -> IdimSimulation:
+    """Simulate the identified axis under the EMPS position/velocity control loop.
+
+    Parameters
+    ----------
+    estimate : Estimate
+        Result of :func:`estimate_idim` (symmetric or asymmetric).
+    record : Record
+        The measured run [m or rad, N or N·m], for its timeline, initial position and the
+        error measures.
+    q_ref : array_like, shape (n,)
+        Reference position [m or rad] (EMPS: ``qg``).
+    kp : float
+        Position-loop gain [1/s] (EMPS: 160.18).
+    kv : float
+        Velocity-loop gain [V/(m/s)] (EMPS: 243.45).
+    gtau : float
+        Drive gain [N/V] (EMPS: 35.1507).
+    saturation : float
+        Controller output limit [V] (EMPS: 10).
+    substeps : int
+        Plant integration sub-steps per control period [-].
+    input_offset : array_like, shape (n,), optional
+        Signal added to the controller output before saturation [V] (EMPS PULSES file:
+        ``pulses_N``, 0/5 V steps — the recorded ``vir`` jumps by exactly 5 V at each
+        edge, so the pulses enter at the drive input, not as a carriage force).
+
+    Returns
+    -------
+    IdimSimulation
+        Simulated position and force with their relative errors.
+
+    Raises
+    ------
+    ParameterError
+        If gains are not positive or ``q_ref`` has the wrong length.
+
+    Notes
+    -----
+    EMPS pdf eq. 6: ``ν = kp·kv·(qr − q) − kv·q̇``, the velocity taken from the 2-tap
+    filtered position ``qf(k) = (q(k) + q(k−1))/2`` by a backward difference, held over a
+    sample (zero-order hold), force ``gtau·ν``. The plant ``M q̈ = τ − friction(q̇)`` is
+    integrated by semi-implicit Euler with ``substeps`` per sample.
+    """
+    q_ref = np.asarray(q_ref, dtype=float).ravel()
+    if q_ref.size != record.n:
+        raise ParameterError(f"q_ref must have one value per sample ({record.n}); got "
+                             f"{q_ref.size}")
+    for name, val in (("kp", kp), ("kv", kv), ("gtau", gtau), ("saturation", saturation)):
+        if not (math.isfinite(val) and val > 0):
+            raise ParameterError(f"{name} must be > 0; got {val}")
+    model = str(estimate.diagnostics.get("model", ""))
+    if estimate.diagnostics.get("regressors") or estimate.diagnostics.get("load"):
+        raise IdentificationError("simulate_idim_model simulates friction and inertia only; "
+                                  "got an estimate with a load or extra regressors")
+    par = {k: (p.value if math.isfinite(p.value) else 0.0) for k, p in estimate.params.items()}
+    mass = par.get("M", par.get("J", math.nan))
+    if model == "symmetric":
+        fv, fc, off = par["Fv"], par["Fc"], par["offset"]
+
+        def friction(v: float) -> float:
+            return fv * v + fc * (v > 0) - fc * (v < 0) + off
+    elif model == "asymmetric":
+        fvp, fcp, fvm, fcm = par["Fv_plus"], par["Fc_plus"], par["Fv_minus"], par["Fc_minus"]
+        off = par.get("offset", 0.0)
+
+        def friction(v: float) -> float:
+            base = fvp * v + fcp if v > 0 else (fvm * v - fcm if v < 0 else 0.0)
+            return base + off
+    else:
+        raise IdentificationError(
+            f"simulate_idim_model needs an estimate made by estimate_idim; got {estimate.method!r}"
+        )
+    dt = record.dt
+    h = dt / int(substeps)
+    n = record.n
+    extra = np.zeros(n) if input_offset is None else np.asarray(input_offset, float).ravel()
+    if extra.size != n:
+        raise ParameterError(f"input_offset must have one value per sample ({n}); got "
+                             f"{extra.size}")
+    xs, us = np.empty(n), np.empty(n)
+    x, v = float(record.x[0]), 0.0
+    q_prev, qf_prev = x, x
+    for k in range(n):
+        xs[k] = x
+        qf = 0.5 * (x + q_prev)
+        nu = kp * kv * (q_ref[k] - x) - kv * (qf - qf_prev) / dt + extra[k]
+        tau = gtau * min(max(nu, -saturation), saturation)
+        us[k] = tau
+        q_prev, qf_prev = x, qf
+        for _ in range(int(substeps)):
+            v += h * (tau - friction(v)) / mass
+            x += h * v
+    xm = np.asarray(record.x, float)
+    pos_err = 100.0 * float(np.linalg.norm(xm - xs) / np.linalg.norm(xm))
+    f_err = math.nan
+    if record.u is not None:
+        um = np.asarray(record.u, float)
+        f_err = 100.0 * float(np.linalg.norm(um - us) / np.linalg.norm(um))
+    return IdimSimulation(t=record.t, x=xs, u=us, position_error_pct=pos_err,
+                          force_error_pct=f_err)
+
+
+def _check_motion(v: np.ndarray, model: str, offset: float | None = None) -> None:
+    scale = float(np.max(np.abs(v))) if v.size else 0.0
+    if scale == 0.0:
+        raise IdentificationError(
+            "the drive never moves, so friction and inertia cannot be identified; record "
+            "a run with motion in both directions; got max |v| = 0"
+        )
+    moving = np.abs(v) > 0.01 * scale
+    n_pos = int(np.count_nonzero(moving & (v > 0)))
+    n_neg = int(np.count_nonzero(moving & (v < 0)))
+    if max(n_pos, n_neg) < 5 or (model == "symmetric" and offset is None
+                                 and min(n_pos, n_neg) < 5):
+        raise IdentificationError(
+            "Coulomb friction and offset cannot be separated without both directions; add "
+            "a run in the other direction, or fix the offset (offset=0.0, CLI --offset 0); "
+            f"got {n_pos} positive and {n_neg} negative-velocity samples"
+        )
