@@ -12,7 +12,8 @@ import pytest
 from driveid.errors import IdentificationError, ParameterError, RecordWarning
 from driveid.identify.crlb import free_decay_crlb
 from driveid.identify.free_decay._free_response import kinetic_stop_count, response
-from driveid.identify.free_decay.output_error import detect_quantum, estimate_output_error
+from driveid.identify.free_decay._quantised import detect_quantum
+from driveid.identify.free_decay.output_error import estimate_output_error
 from driveid.io.record import Record
 from driveid.sim import OscillatorParams, measure, simulate_free_decay
 

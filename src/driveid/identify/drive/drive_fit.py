@@ -566,7 +566,7 @@ def _quanta(recs, problems, sigma) -> list | None:
     the plain model is biased by up to ``q/π·exp(-2π²σ²/q²)`` at every sample, the same
     sign at the same position, which no noise model averages out. ``σ² = rms² - q²/12``.
     """
-    from driveid.identify.free_decay.output_error import detect_quantum
+    from driveid.identify.free_decay._quantised import detect_quantum
 
     out, found = [], False
     for rec, prob, sd_c in zip(recs, problems, sigma, strict=True):
@@ -585,7 +585,7 @@ def _quanta(recs, problems, sigma) -> list | None:
 
 def _quantised(recs, fit: _Fit, z: np.ndarray) -> bool:
     """Whether a position channel sits on an encoder grid coarser than twice its residual rms."""
-    from driveid.identify.free_decay.output_error import detect_quantum
+    from driveid.identify.free_decay._quantised import detect_quantum
 
     raw = fit.raw_residuals(z)
     for rec, prob, res in zip(recs, fit.problems, raw, strict=True):
@@ -702,7 +702,7 @@ def _result(start, base, names, all_names, theta, cov, recs, problems, index, fi
                 warnings.append(f"the residual of {key} is not white (Ljung-Box p = "
                                 f"{test['p_value']:.2g}): the model misses some dynamics "
                                 "or the noise is coloured; the standard errors may be low")
-    from driveid.identify.free_decay.output_error import detect_quantum
+    from driveid.identify.free_decay._quantised import detect_quantum
 
     for ch in sorted({c for r in recs for c in r.channels if c.startswith("x")}):
         q = detect_quantum(next(r.channels[ch] for r in recs if ch in r.channels))

@@ -59,11 +59,9 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from scipy import stats
 from threadpoolctl import threadpool_limits
 
 from driveid.errors import IdentificationError, ParameterError, RecordWarning
-from driveid.identify.core._adequacy import ljung_box
 from driveid.identify.core._noise import white_noise
 from driveid.identify.core._plausibility import plausibility_checked
 from driveid.identify.core.estimate import Estimate, Parameter
@@ -72,7 +70,6 @@ from driveid.identify.free_decay._free_decay_structures import (
     StreamWhitener,
     assess,
     noise_rounds,
-    simulate_noise,
 )
 from driveid.identify.free_decay._free_decay_verdict import (
     adequacy_of,
@@ -86,14 +83,12 @@ from driveid.identify.free_decay._free_response import (
     kinetic_stop_count,
     response,
 )
+from driveid.identify.free_decay._quantised import bootstrap_covariance, detect_quantum
 from driveid.io.record import Record
-from driveid.signal.repair import _interval_blocks
 
-__all__ = ["detect_quantum", "estimate_output_error", "physical_parameters",
-           "replicate_covariance"]
+# detect_quantum lives in _quantised; named here too, where users have imported it from
+__all__ = ["detect_quantum", "estimate_output_error", "physical_parameters"]
 
-#: Samples per block of the chunked passes over a record (0.5 MB of float64).
-_BLOCK = 1 << 16
 _ZETA_BOUND = 0.999  # |ζ| < 1: the model is underdamped by construction
 #: Above this many samples the stop-count search and the start values use a decimated
 #: copy; the final fits use every sample (so the efficiency is unchanged).
@@ -107,42 +102,6 @@ _RANK_SAMPLES = 2000
 #: This now bounds time (25 bootstrap refits of an encoder record); the Jacobian is formed
 #: in blocks whatever the length (issue 12: the whole n x p Jacobian needed > 2.7 GB).
 _MAX_FIT_SAMPLES = 2_000_000
-
-
-def detect_quantum(x: np.ndarray) -> float | None:
-    """Return the encoder step of a quantised position signal, or ``None``.
-
-    Parameters
-    ----------
-    x : ndarray, shape (n,)
-        Position samples [m or rad].
-
-    Returns
-    -------
-    float or None
-        The step [m or rad] if every sample lies on one grid of at least 8 levels (to
-        1e-6 of a step), else ``None``.
-    """
-    x = np.asarray(x, float)
-    # in blocks (O(block) memory at any length; the same numbers as whole-array passes)
-    blocks = range(0, x.size, _BLOCK)
-    floor = 1e-12 * max(max(float(np.max(np.abs(x[s:s + _BLOCK]))) for s in blocks), 1e-300)
-    q = math.inf
-    for _, step in _interval_blocks(x, _BLOCK):
-        step = np.abs(step)
-        step = step[step > floor]
-        if step.size:
-            q = min(q, float(np.min(step)))
-    if q == math.inf:
-        return None
-    worst, low, high = 0.0, math.inf, -math.inf
-    for s in blocks:
-        levels = (x[s:s + _BLOCK] - x[0]) / q
-        worst = max(worst, float(np.max(np.abs(levels - np.round(levels)))))
-        low, high = min(low, float(np.min(levels))), max(high, float(np.max(levels)))
-    if worst > 1e-6 or high - low < 8:
-        return None
-    return q
 
 
 def _units(record: Record) -> dict[str, str]:
@@ -591,7 +550,7 @@ def estimate_output_error(
             c["chi2"] = c["rss"] / s2 if s2 > 0 else (0.0 if c is chosen else math.inf)
             c["cov"] = _ls_covariance(c["sol"], s2)
         if quantum is not None:
-            boot = _bootstrap_covariance(problem, chosen, s2, quantum, bootstrap, rng,
+            boot = bootstrap_covariance(problem, chosen, s2, quantum, bootstrap, rng,
                                          progress)
             if not problem.noise.is_white:
                 # coloured: the larger of the bootstrap and the prewhitened analytic error
@@ -730,70 +689,6 @@ def _condition(sol):
     if sol.jac is not None:
         return float(np.linalg.cond(sol.jac))
     return float(math.sqrt(np.linalg.cond(sol.jtj)))
-
-
-def _bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progress=None):
-    """Covariance of refits to the fitted response re-quantised on randomly shifted grids.
-
-    With a coloured noise model the noise re-added before re-quantising is AR noise of the
-    fitted spectrum (not white), and each replicate is refitted with the same prewhitening.
-    """
-    gen = np.random.default_rng(0 if rng is None else rng)  # reproducible by default
-    fitted, _ = problem.model(chosen["p"], chosen["counts"], jacobian=False)
-    # noise beyond the rounding itself (variance q²/12), re-added before re-quantising
-    noise = problem.noise
-    raw_var = s2 if noise.is_white else noise.variance
-    extra = math.sqrt(max(raw_var - quantum**2 / 12.0, 0.0))
-    estimates = []
-    problem.boot_q = []
-    for k in range(replicates):
-        phase = gen.uniform(0.0, quantum)
-        if not noise.is_white:
-            # the AR model already holds the rounding's white floor; re-quantising adds it
-            # again, but taking it out of the total would thin the low frequencies that set
-            # the error bars: the full fitted spectrum, conservative by q²/12
-            noisy = fitted + simulate_noise(noise, problem.segments, noise.variance, gen)
-        else:
-            noisy = fitted + (gen.normal(0.0, extra, fitted.size) if extra > 0 else 0.0)
-        y_b = quantum * np.round((noisy - phase) / quantum) + phase
-        sol = problem.fit(chosen["p"], chosen["counts"], y=y_b, max_iter=30)
-        # from the optimum, 30 iterations that still gain are near the replicate's own
-        if sol.status >= 0 and np.all(np.isfinite(sol.x)):
-            estimates.append(sol.x)
-            # whiteness statistic of a record that fits the model exactly: quantisation
-            # alone makes residuals non-white, so the observed one is judged against these
-            r_b = noise.whiten(y_b - problem.model(sol.x, chosen["counts"], False)[0],
-                               problem.segments)
-            problem.boot_q.append(ljung_box(r_b, fitted=noise.order)["statistic"])
-        if progress is not None:
-            progress(k + 1, replicates)
-    if len(estimates) < max(10, replicates // 2):
-        raise IdentificationError(
-            f"only {len(estimates)} of {replicates} bootstrap refits converged; the error bars "
-            "of this quantised record cannot be trusted (record more cycles or a finer encoder)")
-    return replicate_covariance(estimates)
-
-
-def replicate_covariance(replicates: Sequence[np.ndarray]) -> np.ndarray:
-    """Covariance of bootstrap replicates, widened for the number of replicates.
-
-    A variance estimated from m replicates makes ``(estimate - truth)/se`` a Student t with
-    m - 1 degrees of freedom, so the covariance is scaled by ``(t_{m-1,0.975}/1.96)²`` and the
-    usual ±1.96 se interval has t's 95 % width (×1.053 on se at m = 25; 200 encoder decays
-    gave c_mean coverage 0.92 without it, 0.93 with it).
-
-    Parameters
-    ----------
-    replicates : sequence of ndarray, shape (p,)
-        The refitted parameter vectors [their units].
-
-    Returns
-    -------
-    ndarray, shape (p, p)
-    """
-    m = len(replicates)
-    widen = float(stats.t.ppf(0.975, m - 1) / stats.norm.ppf(0.975))
-    return np.atleast_2d(np.cov(np.array(replicates), rowvar=False)) * widen**2
 
 
 def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum, mass,

@@ -19,7 +19,7 @@ from scipy.signal import lfilter
 
 from driveid.errors import DriveIdError, IdentificationError, RecordError
 from driveid.identify.core._noise import NoiseModel
-from driveid.identify.free_decay.output_error import replicate_covariance
+from driveid.identify.free_decay._quantised import replicate_covariance
 from driveid.identify.pho.peaks import _gains
 from driveid.io.record import Record
 

@@ -37,7 +37,7 @@ smooth at that scale). Start values: the peak analysis.
 Error bars of the campaign fit
 ------------------------------
 White noise: ``s²(JᵀJ)⁻¹`` with ``s² = RSS/(n - p)``. Encoder records (every run on one
-grid, :func:`~driveid.identify.free_decay.output_error.detect_quantum`, or ``quantisation=``
+grid, :func:`~driveid.identify.free_decay._quantised.detect_quantum`, or ``quantisation=``
 the step):
 a parametric bootstrap, as for free decays — the fitted response, plus any noise beyond the
 rounding, re-quantised on a grid of random phase per run, ``bootstrap`` times. Each
@@ -47,7 +47,7 @@ curvature scale of the model, so the step is the refit to first order) or by a f
 (``refit=True``, about ``0.6·bootstrap`` times the fit's cost; its standard errors agreed
 with the step's to 3 %). The covariance of the replicates, widened by
 ``t_{B-1,0.975}/1.96`` for their number
-(:func:`~driveid.identify.free_decay.output_error.replicate_covariance`), is the estimate's.
+(:func:`~driveid.identify.free_decay._quantised.replicate_covariance`), is the estimate's.
 
 Measured (``benchmarks/bench_pho_coverage.py``, docs/pho-fit.md): on 200 quantised
 asymmetric campaigns each of the test bed (8000 counts/rev) and the pendulum cart (10 µm),
@@ -110,7 +110,7 @@ from driveid.identify.core._adequacy import Adequacy, Structure, compare_structu
 from driveid.identify.core._noise import NoiseModel, fit_noise_model, hac_covariance
 from driveid.identify.core._plausibility import plausibility_checked
 from driveid.identify.core.estimate import Estimate, Parameter
-from driveid.identify.free_decay.output_error import detect_quantum
+from driveid.identify.free_decay._quantised import detect_quantum
 from driveid.identify.pho import _pho_fit_core as core
 from driveid.identify.pho.peaks import estimate_pho_records
 from driveid.io.record import Record
