@@ -412,3 +412,35 @@ def test_whiteness_test_keeps_its_size_with_a_fitted_initial_state():
     assert np.sum(p < 0.01) <= 4
     # p uniform under the null: mean 0.5 with sd 0.29/√60 = 0.037; ±0.15 is 4 sd
     assert abs(np.mean(p) - 0.5) < 0.15
+
+
+def test_a_pho_fit_with_a_static_band_is_validated_with_it():
+    """Static friction 15 % above kinetic: validate simulates the band the campaign fit chose.
+
+    Without it one run of this grid stops at the kinetic level, 3 mrad from where the record
+    rests (measured: fit 98.7 %, residual not white); with it every run's residual is the
+    noise."""
+    import dataclasses
+
+    from driveid._validate_models import drive_model
+    from driveid.identify.pho.pho_fit import estimate_pho_output_error
+    from tests.identify.test_pho_honesty import TESTBED as STICKY
+    from tests.identify.test_pho_honesty import campaign
+
+    grid = [(2.0, 0.03, 1.0)] + [(P, D, 1.0) for P in (2.0, 3.0) for D in (0.04, 0.05)]
+    gen = np.random.default_rng(5)
+    recs = [r.replace(x=r.x + gen.normal(0.0, 1e-4, r.n))
+            for r in campaign(STICKY, grid, 1.15, duration=4.0)]
+    est = estimate_pho_output_error(recs, delay=STICKY["delay"], K_known=0.0,
+                                    quantisation=None)
+    band = est.diagnostics["static_band"]
+    assert band["chosen"]
+    body = drive_model(est, recs[0], index=0).body
+    assert (body.fs_mean, body.fs_delta) == (band["fs_mean"], band["fs_delta"])
+    for k, run in enumerate(recs):
+        c = compare(run, est, index=k)
+        # rms within 5 % of the noise: 3.5 sd of an rms over n = 2001 samples
+        assert c.whiteness["white"] and c.residual_rms == pytest.approx(1e-4, rel=0.05)
+    kinetic = dataclasses.replace(est, diagnostics={**est.diagnostics, "static_band": None})
+    worst = max(compare(run, kinetic, index=k).residual_rms for k, run in enumerate(recs))
+    assert worst > 10 * 1e-4  # the check can fail: without the band one run is off

@@ -11,7 +11,10 @@ kind (estimate methods)    input and loop                  initial state
 =========================  ==============================  =============================
 ``pho``                    delayed PD loop ``P``, ``D``    ``meta["x0"]`` (else first
 (``pho-campaign``,         of ``meta``, Δ = ``delay``;     sample), at rest at t = 0
-``pho-output-error``)      no external input               (a window keeps that clock)
+``pho-output-error``)      no external input; the static   (a window keeps that clock)
+                           band it chose
+                           (``diagnostics["static_band"]``)
+                           is simulated
 ``forced``                 ``u`` of the record; forced     fitted (exact linear least
 (``forced-response``,      PHO adds the delayed PD loop    squares; nonlinear least
 ``forced-pho``)            (gains from ``meta`` or the     squares with friction)
@@ -187,7 +190,8 @@ def _gain(record: Record, estimate: Estimate, name: str, index: int | None,
 
 
 def _friction_body(J: float, K: float, c_mean: float, c_delta: float, fk_mean: float,
-                   fk_delta: float, what: str):
+                   fk_delta: float, what: str, fs_mean: float | None = None,
+                   fs_delta: float | None = None):
     from driveid.sim import BodyParams
 
     if not J > 0:
@@ -199,7 +203,7 @@ def _friction_body(J: float, K: float, c_mean: float, c_delta: float, fk_mean: f
             f"{what} cannot be simulated: its kinetic friction fk_mean = {fk_mean:g} < 0 is "
             "not a passive drive; re-identify (more motion in both directions)")
     return BodyParams(J=J, K=K, c_mean=c_mean, c_delta=c_delta, fk_mean=fk_mean,
-                      fk_delta=fk_delta)
+                      fk_delta=fk_delta, fs_mean=fs_mean, fs_delta=fs_delta)
 
 
 def _pho_model(estimate, record, index):
@@ -215,12 +219,17 @@ def _pho_model(estimate, record, index):
     sat = record.meta.get("saturation")
     sat = float(sat) if isinstance(sat, (int, float)) and sat > 0 else math.inf
     friction = {n: _optional(estimate, n) for n in ("c_delta", "fk_mean", "fk_delta")}
+    # a campaign fit that found static above kinetic friction (pho_fit's static band) is
+    # simulated with it: sticking then ends at the static level, as in the fitted model
+    band = (estimate.diagnostics or {}).get("static_band")
+    static = ({"fs_mean": float(band["fs_mean"]), "fs_delta": float(band["fs_delta"])}
+              if isinstance(band, Mapping) and band.get("chosen") else {})
     body = _friction_body(J, K, c_mean, friction["c_delta"], friction["fk_mean"],
-                          friction["fk_delta"], what)
+                          friction["fk_delta"], what, **static)
     fb = PDFeedback(P=P, D=D, delay=delay, saturation=sat)
     absent = [n for n in ("c_delta", "fk_mean", "fk_delta") if n not in estimate]
     return DriveModel("pho", body, fb, summary={
-        "kind": "pho", "J": J, "K": K, "c_mean": c_mean, **friction, "delay": delay,
+        "kind": "pho", "J": J, "K": K, "c_mean": c_mean, **friction, **static, "delay": delay,
         "P": P, "D": D, "terms_taken_as_zero": absent + ["K"] * clamped})
 
 
