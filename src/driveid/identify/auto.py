@@ -37,6 +37,7 @@ from driveid.errors import DriveIdError, IdentificationError, ParameterError
 from driveid.identify._shape import ShapeVerdict, classify_record
 from driveid.identify.core.estimate import Estimate
 from driveid.io.record import Record
+from driveid.signal.differentiate import lowpass_cutoff
 
 __all__ = ["identify_auto", "NEXT_TEST"]
 
@@ -104,19 +105,20 @@ def _candidates(shape: str, records: list[Record], mass, stiffness) -> list[tupl
         from driveid.identify.friction.friction_map import estimate_friction_map
 
         return [("friction-map", lambda: estimate_friction_map(
-            records, models=("coulomb_viscous",)).estimate)]
+            records, models=("coulomb_viscous",), cutoff_hz=_speed_cutoff(records)).estimate)]
     if shape in ("broadband", "operating"):
         from driveid.identify.friction.idim import estimate_idim
 
         cutoff = _idim_cutoff(records)
-        out = [("idim", lambda: estimate_idim(records, cutoff_hz=cutoff)),
+        out = [("idim", lambda: estimate_idim(records, cutoff_hz=cutoff, parallel=True)),
                ("idim+spring", lambda: estimate_idim(records, cutoff_hz=cutoff,
-                                                     regressors=("x",)))]
+                                                     regressors=("x",), parallel=True))]
         if shape == "operating":
             from driveid.identify.friction.friction_map import estimate_friction_map
 
             out.append(("friction-map", lambda: estimate_friction_map(
-                records, models=("coulomb_viscous",)).estimate))
+                records, models=("coulomb_viscous",),
+                cutoff_hz=_speed_cutoff(records)).estimate))
         return out
     return []
 
@@ -126,7 +128,9 @@ def _idim_cutoff(records: Sequence[Record]) -> float:
 
     Twice-differentiated position noise grows as f²; a cut-off far above the excitation
     only adds noise to the acceleration regressor and biases J towards zero (errors in
-    variables). Between 1 Hz and fs/5.
+    variables). Between 1 Hz and fs/5, and lowered further where the position noise would
+    make the acceleration noise more than 5 % of its signal
+    (:func:`driveid.signal.differentiate.lowpass_cutoff`).
     """
     from scipy.signal import welch
 
@@ -139,7 +143,25 @@ def _idim_cutoff(records: Sequence[Record]) -> float:
         cum = np.cumsum(psd) / max(float(np.sum(psd)), 1e-300)
         tops.append(float(freq[min(int(np.searchsorted(cum, 0.95)), freq.size - 1)]))
     fs = min(r.fs for r in records)
-    return float(np.clip(5.0 * max(tops, default=fs), 1.0, 0.2 * fs))
+    band = float(np.clip(5.0 * max(tops, default=fs), 1.0, 0.2 * fs))
+    # and no higher than the position noise allows (x'' noise 5 % of the signal's); below
+    # the decimation's band IDIM filters the force alike (parallel filtering), so a low
+    # cut-off costs bandwidth, not bias
+    noisy = min(lowpass_cutoff(r.x, r.fs, highest=band) for r in records)
+    return float(max(min(band, noisy), 0.1))
+
+
+def _speed_cutoff(records: Sequence[Record]) -> float | None:
+    """Low-pass for the friction map's speed [Hz]: fs/20, lower where the noise needs it.
+
+    A test of force plateaus moves between them, so its acceleration has a signal; the
+    cut-off whose x'' noise is 5 % of it keeps the speed's noise from hiding the approach to
+    each plateau (which the map then mistakes for points; 5–15 % on f̄k at 1e-3 noise with
+    fs/20, measured on simulated plateaus). None where the records carry a speed column.
+    """
+    if all(r.v is not None for r in records):
+        return None
+    return min(lowpass_cutoff(r.x, r.fs, highest=r.fs / 20.0) for r in records)
 
 
 def _break_speed(records: Sequence[Record]) -> float:

@@ -66,6 +66,35 @@ def bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progress
 
     With a coloured noise model the noise re-added before re-quantising is AR noise of the
     fitted spectrum (not white), and each replicate is refitted with the same prewhitening.
+
+    Parameters
+    ----------
+    problem : _Problem
+        The output-error problem of :mod:`~driveid.identify.free_decay.output_error` (its
+        ``model``, ``fit``, ``noise`` and ``segments``); ``problem.boot_q`` receives each
+        replicate's Ljung–Box statistic.
+    chosen : dict
+        The chosen candidate: ``p`` (parameter vector) and ``counts`` (half cycles).
+    s2 : float
+        Residual variance of the fit [m² or rad²].
+    quantum : float
+        Encoder step [m or rad].
+    replicates : int
+        Bootstrap refits [-].
+    rng : Generator or int or None
+        Random generator or seed; None is seed 0 (the same record, the same error bars).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each refit.
+
+    Returns
+    -------
+    ndarray, shape (p, p)
+        Covariance of the parameter vector, widened for the number of replicates.
+
+    Raises
+    ------
+    IdentificationError
+        If fewer than half the refits (or 10) converge.
     """
     gen = np.random.default_rng(0 if rng is None else rng)  # reproducible by default
     fitted, _ = problem.model(chosen["p"], chosen["counts"], jacobian=False)

@@ -41,7 +41,12 @@ from driveid.models.friction import (
     lorentzian_friction,
 )
 from driveid.signal.differentiate import differentiate
-from driveid.signal.steady import SteadySegment, find_steady_segments, segment_mean
+from driveid.signal.steady import (
+    SteadySegment,
+    find_steady_segments,
+    n_effective,
+    segment_mean,
+)
 
 __all__ = [
     "FrictionMap",
@@ -177,14 +182,57 @@ def steady_points(
         fc = record.fs / 20.0 if cutoff_hz is None else cutoff_hz
         _, v, _ = differentiate(record.x, record.fs, cutoff_hz=fc)
     u = np.asarray(record.u, dtype=float)
+    settings = {"window": window, "rel_tol": rel_tol, "noise_factor": noise_factor,
+                "min_samples": min_samples}
+    # steady means force and speed both steady: a speed that merely changes slowly inside
+    # a window (the tail of an approach with time constant J/c) or that spans a step of the
+    # force is not on the friction map
     points = []
-    for a, b in find_steady_segments(v, window=window, rel_tol=rel_tol,
-                                     noise_factor=noise_factor, min_samples=min_samples):
+    for a, b in find_steady_segments(v, **settings):
         vm, vs = segment_mean(v[a:b])
         fm, fs = segment_mean(u[a:b])
         if abs(vm) > 2 * vs:
             points.append(SteadySegment(a, b, vm, vs, fm, fs, b - a))
-    return points
+    return _settled(points, v, rel_tol)
+
+
+def _drift(v: np.ndarray) -> float:
+    """Least-squares change of ``v`` over the piece where it is significant, else 0."""
+    n = v.size
+    if n < 3:
+        return 0.0
+    i = np.arange(n) - 0.5 * (n - 1)
+    slope = float(i @ (v - v.mean())) / float(i @ i)
+    resid = v - v.mean() - slope * i
+    # the residual's correlation (a filtered, differentiated position) widens the trend's
+    # standard error as 1/sqrt(n_eff)
+    se = float(np.std(resid)) * math.sqrt(12.0 / n_effective(resid))
+    return slope * n if abs(slope * n) > 4.0 * se else 0.0
+
+
+def _settled(points: list[SteadySegment], v: np.ndarray,
+             rel_tol: float) -> list[SteadySegment]:
+    """Drop pieces that are the approach to the next one at the same force.
+
+    Under a constant force a settled axis has one speed; a piece at that force whose speed
+    still drifts towards the next piece's (an exponential with time constant J/c looks level
+    inside a short window) is the transient, not a point of the map. Pieces at one force with
+    flat, different speeds stay: a speed-controlled test on the falling part of a Stribeck
+    curve gives those.
+    """
+    out: list[SteadySegment] = []
+    for p in points:
+        if out:
+            q = out[-1]
+            tol = max(rel_tol * max(abs(p.force), abs(q.force)),
+                      4.0 * math.hypot(p.force_stderr, q.force_stderr))
+            drift = _drift(v[q.start:q.stop])
+            if (abs(p.force - q.force) <= tol and drift != 0.0
+                    and np.sign(drift) == np.sign(p.velocity - q.velocity)):
+                out[-1] = p
+                continue
+        out.append(p)
+    return out
 
 
 def binned_points(

@@ -29,7 +29,7 @@ from driveid.identify.core._expressions import evaluate_expression, parse_expres
 from driveid.identify.core.estimate import Estimate, Parameter
 from driveid.identify.friction._idim_noise import _held, _lag1, _solve
 from driveid.io.record import Record
-from driveid.signal.differentiate import differentiate
+from driveid.signal.differentiate import differentiate, zero_phase_lowpass
 from driveid.signal.steady import standstill_mask
 
 __all__ = [
@@ -120,6 +120,7 @@ def idim_regressor(
     load: str | np.ndarray | None = None,
     regressors: Sequence[str] = (),
     min_speed: float | None = None,
+    parallel: bool = False,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Build the decimated observation matrix and force of the IDIM model.
 
@@ -154,6 +155,11 @@ def idim_regressor(
         most two encoder counts (its smallest step), or by at most 8 noise sd (from its
         second differences) on a noisy sensor, within ``fs/cutoff_hz`` samples, widened by
         twice that on each side (the zero-phase filter smears the stop).
+    parallel : bool
+        Parallel filtering: when ``cutoff_hz`` lies below the decimation's band
+        (``fs / (2 decimate)``), pass the force and the friction and extra columns through the
+        same zero-phase filter as the position, so that ``J x''`` of the filtered position
+        meets a force of the same band (without it a low cut-off biases J upwards).
 
     Returns
     -------
@@ -195,6 +201,13 @@ def idim_regressor(
         y -= float(offset)  # y is ours (a copy of u): in place
     extra = [evaluate_expression(r, values) for r in regressors]
     del values, xf  # only expressions use the filtered position
+    # parallel filtering: a position filter narrower than the decimation's leaves the force
+    # wider band than J·x'' of the filtered position, which biases J upwards; the force and
+    # the columns not built from derivatives then pass the same zero-phase filter
+    parallel = bool(parallel) and cutoff_hz < fs / (2 * int(decimate))
+    if parallel:
+        y = zero_phase_lowpass(y, fs, cutoff_hz)
+        extra = [zero_phase_lowpass(c, fs, cutoff_hz) for c in extra]
     # the zero-phase filter's start-up transient lasts a few 1/cutoff_hz
     cut = max(int(edge), math.ceil(3.0 * fs / cutoff_hz))
     sl = slice(cut, record.n - cut)
@@ -208,12 +221,17 @@ def idim_regressor(
         )
     # one column at a time: decimating each equals decimating the stacked n x p matrix,
     # which held p full columns plus the filter's padded copies (issue 12)
+    def same(column: np.ndarray) -> np.ndarray:
+        # sgn(v) and the one-sided velocities are not linear in x: filtered like the force
+        return zero_phase_lowpass(column, fs, cutoff_hz) if parallel else column
+
     if model == "symmetric":
-        cols = [lambda: a, lambda: v, lambda: np.sign(v)] + (
+        cols = [lambda: a, lambda: v, lambda: same(np.sign(v))] + (
             [lambda: np.ones_like(v)] if offset is None else [])
     else:
-        cols = [lambda: a, lambda: np.where(v > 0, v, 0.0), lambda: (v > 0).astype(float),
-                lambda: np.where(v < 0, v, 0.0), lambda: -(v < 0).astype(float)]
+        cols = [lambda: a, lambda: same(np.where(v > 0, v, 0.0)),
+                lambda: same((v > 0).astype(float)), lambda: same(np.where(v < 0, v, 0.0)),
+                lambda: same(-(v < 0).astype(float))]
     cols += [lambda c=c: c for c in extra]
     if decimate > 1:
         W = np.column_stack([sps.decimate(make(), int(decimate)) for make in cols])
@@ -273,6 +291,7 @@ def estimate_idim(
     min_speed: float | None = None,
     sensitivity: bool = True,
     noise: str = "ar",
+    parallel: bool = False,
 ) -> Estimate:
     """Estimate inertia, viscous and Coulomb friction (and offset) by IDIM-LS.
 
@@ -321,6 +340,10 @@ def estimate_idim(
         prewhitened and the fit repeated; white residuals give exactly the ordinary
         least-squares fit. ``"white"``: ordinary least squares with white-noise error bars
         (the EMPS benchmark's published recipe).
+    parallel : bool
+        Parallel filtering of the force and the friction columns below the decimation's
+        band (see :func:`idim_regressor`); ``identify auto`` uses it with a cut-off lowered
+        for the position noise.
 
     Returns
     -------
@@ -406,6 +429,7 @@ def estimate_idim(
     for r in regressors:
         parse_expression(r)
     settings = {"model": model, "cutoff_hz": float(cutoff_hz), "decimate": decimate,
+                "parallel": bool(parallel),
                 "edge": edge, "offset": offset, "regressors": regressors,
                 "min_speed": min_speed}
     blocks, p = _stack(recs, loads, settings)
@@ -461,6 +485,7 @@ def estimate_idim(
         "inertia_share_pct": 100.0 * float(np.linalg.norm(a_part) / np.linalg.norm(y_all)),
         "cutoff_hz": float(cutoff_hz),
         "decimate": int(decimate),
+        "parallel": bool(parallel),
         "edge": int(edge),
         "min_speed": min_speed,
         "offset_fixed": None if offset is None else float(offset),
@@ -640,7 +665,8 @@ def validate_idim(estimate: Estimate, record: Record) -> IdimValidation:
                                 decimate=int(diag["decimate"]), edge=int(diag["edge"]),
                                 offset=diag.get("offset_fixed"), load=load,
                                 regressors=tuple(diag.get("regressors", ())),
-                                min_speed=diag.get("min_speed"))
+                                min_speed=diag.get("min_speed"),
+                                parallel=bool(diag.get("parallel", False)))
     theta = np.array([p.value for p in estimate.params.values() if not p.fixed])
     theta = np.where(np.isfinite(theta), theta, 0.0)
     pred = W @ theta

@@ -10,7 +10,9 @@ While the axis moves (thesis Eq. (2.155), DESIGN.md signs)
 .. math:: u = J x'' + c_{mean} x' + c_{delta} |x'| + K x + fk_{mean}\,\mathrm{sgn}\,x' + fk_{delta},
 
 linear in the parameters. ``x'`` and ``x''`` come from a Savitzky–Golay fit (quintic, window
-``smooth`` s; its bias on a ringing at ω is ``O((ω·smooth)⁴)``); samples within one window
+``smooth`` s, by default the shortest window whose x'' noise is 5 % of the signal's, so
+that the errors-in-variables bias towards J = 0 stays near 0.25 %; its bias on a ringing at
+ω is ``O((ω·smooth)⁴)``); samples within one window
 of a step of u or of a velocity reversal are skipped (there x'' jumps and the smoothed
 derivatives are wrong), and so are samples slower than ``v_min``. Each step rings at ω_d, so
 the regressors x'', x', x are well separated and J, C, K come out together. Standard errors:
@@ -48,6 +50,7 @@ from scipy.signal import savgol_filter
 from driveid.errors import IdentificationError, ParameterError, RecordError
 from driveid.identify.core.estimate import Estimate, Parameter
 from driveid.io.record import Record
+from driveid.signal.differentiate import savgol_window
 
 __all__ = ["estimate_square_wave"]
 
@@ -68,7 +71,7 @@ def _near(mask: np.ndarray, half: int) -> np.ndarray:
     return np.convolve(mask.astype(float), kernel, mode="same") > 0
 
 
-def estimate_square_wave(records: Record | Sequence[Record], *, smooth: float = 0.01,
+def estimate_square_wave(records: Record | Sequence[Record], *, smooth: float | None = None,
                          v_min: float | None = None,
                          move_tol: float | None = None) -> Estimate:
     r"""J, C, K, kinetic and (where stuck half-periods exist) static friction.
@@ -79,8 +82,10 @@ def estimate_square_wave(records: Record | Sequence[Record], *, smooth: float = 
         Runs with ``t`` [s], ``x`` [rad or m] and the square-wave input ``u`` [N·m or N]
         (DC-biased; a spring or position loop inside ``u`` is not allowed: u is the
         external force on the axis, which has its own stiffness K > 0).
-    smooth : float
-        Savitzky–Golay window [s] for x' and x'' (>= 7 samples).
+    smooth : float, optional
+        Savitzky–Golay window [s] for x' and x'' (>= 7 samples); default from the record's
+        noise: the shortest window, at least 10 ms, whose x'' noise is 5 % of the x''
+        signal (:func:`driveid.signal.differentiate.savgol_window`).
     v_min : float, optional
         Moving threshold [rad/s or m/s]; default 2 % of the largest |x'|.
     move_tol : float, optional
@@ -118,10 +123,11 @@ def estimate_square_wave(records: Record | Sequence[Record], *, smooth: float = 
     records = [records] if isinstance(records, Record) else list(records)
     if not records or not all(isinstance(r, Record) for r in records):
         raise ParameterError("records must be one or more Records")
-    if not (math.isfinite(smooth) and smooth > 0):
+    if smooth is not None and not (math.isfinite(smooth) and smooth > 0):
         raise ParameterError(f"smooth must be a positive window [s]; got {smooth!r}")
     rows, ys, brackets = [], [], {1: [-math.inf, math.inf], -1: [-math.inf, math.inf]}
     n_half = n_stuck = 0
+    windows: list[float] = []
     pending_static = []
     for rec in records:
         if rec.u is None:
@@ -130,9 +136,14 @@ def estimate_square_wave(records: Record | Sequence[Record], *, smooth: float = 
         rec = rec.resampled_uniform(purpose="the Savitzky-Golay derivatives of the square-wave "
                                     "fit")
         dt = rec.dt
-        win = max(int(round(smooth / dt)) | 1, 7)
+        if smooth is None:
+            # from the noise: the shortest window whose x'' noise is 5 % of the signal's
+            win = max(savgol_window(rec.x, dt, polyorder=5, shortest=0.01), 7)
+        else:
+            win = max(int(round(smooth / dt)) | 1, 7)
+        windows.append(win * dt)
         if win > rec.n // 2:
-            raise RecordError(f"smooth={smooth} s is {win} samples, over half the record; "
+            raise RecordError(f"smooth={win * dt:g} s is {win} samples, over half the record; "
                               "use a shorter window")
         x, u = np.asarray(rec.x, float), np.asarray(rec.u, float)
         xs = savgol_filter(x, win, 5)
@@ -162,9 +173,14 @@ def estimate_square_wave(records: Record | Sequence[Record], *, smooth: float = 
     A, y = np.vstack(rows), np.concatenate(ys)
     p = A.shape[1]
     if y.size < 3 * p:
+        why = ("excite larger motions, lower v_min or shorten the smoothing window"
+               if smooth is not None else
+               f"the position noise needs a {1e3 * max(windows):.3g} ms derivative window "
+               "(x'' noise 5 % of the signal), which leaves too little between the steps: "
+               "record with less noise or a finer encoder, excite larger motions, or give a "
+               "shorter smoothing window (more noise, J biased low)")
         raise IdentificationError(
-            f"{y.size} moving samples away from steps and reversals; need >= {3 * p}: "
-            "excite larger motions, lower v_min or shorten the smoothing window")
+            f"{y.size} moving samples away from steps and reversals; need >= {3 * p}: {why}")
     scale = np.linalg.norm(A, axis=0)
     scale[scale == 0] = 1.0
     cond = float(np.linalg.cond(A / scale))
@@ -175,7 +191,7 @@ def estimate_square_wave(records: Record | Sequence[Record], *, smooth: float = 
     theta, *_ = np.linalg.lstsq(A, y, rcond=None)
     resid = y - A @ theta
     s2 = float(resid @ resid) / max(y.size - p, 1)
-    inflation = max(int(round(smooth / records[0].dt)), 1)
+    inflation = max(int(round(max(windows) / records[0].dt)), 1)
     cov = s2 * np.linalg.inv(A.T @ A) * inflation
     se = np.sqrt(np.diag(cov))
     units = _units(records[0])
@@ -215,6 +231,6 @@ def estimate_square_wave(records: Record | Sequence[Record], *, smooth: float = 
         data_used={"static_brackets": {"plus": brackets[1], "minus": brackets[-1]}},
         diagnostics={"n_used": int(y.size), "n_half_periods": n_half, "n_stuck": n_stuck,
                      "residual_rms": math.sqrt(s2), "condition": cond,
-                     "se_inflation": inflation},
+                     "se_inflation": inflation, "smooth_s": [float(w) for w in windows]},
         warnings=tuple(warnings),
     )
