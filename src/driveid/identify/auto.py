@@ -37,7 +37,7 @@ from driveid.errors import DriveIdError, IdentificationError, ParameterError
 from driveid.identify._shape import ShapeVerdict, classify_record
 from driveid.identify.core.estimate import Estimate
 from driveid.io.record import Record
-from driveid.signal.differentiate import lowpass_cutoff
+from driveid.signal.differentiate import lowpass_cutoff, position_noise_std
 
 __all__ = ["identify_auto", "NEXT_TEST"]
 
@@ -99,8 +99,10 @@ def _candidates(shape: str, records: list[Record], mass, stiffness) -> list[tupl
         # a noisy force crosses zero at rest: ramps that stay below a third of the top
         # force are noise, not ramps
         top = max(float(np.max(np.abs(r.u))) for r in records if r.u is not None)
+        v_break = _break_speed(records)
         return [("breakaway", lambda: estimate_breakaway_sliding(
-            records, v_break=_break_speed(records), min_force=top / 3))]
+            records, v_break=v_break, window=_rate_window(records, v_break),
+            min_force=top / 3))]
     if shape == "plateaus":
         from driveid.identify.friction.friction_map import estimate_friction_map
 
@@ -174,6 +176,20 @@ def _break_speed(records: Sequence[Record]) -> float:
         if xs.size > 1:
             top = max(top, float(np.max(np.abs(np.diff(xs)))) * r.fs)
     return max(0.05 * top, 1e-12)
+
+
+def _rate_window(records: Sequence[Record], v_break: float) -> float:
+    """Window of the displacement rate [s]: its noise (√2 σ / window) a fifth of v_break.
+
+    At least 10 samples (the estimator's default), at most a quarter second: a noisy
+    position read over 10 samples crosses the sliding threshold at rest and puts the
+    breakaway at the start of the ramp.
+    """
+    out = 0.0
+    for r in records:
+        sigma = position_noise_std(r.x)
+        out = max(out, 10.0 / r.fs, min(5.0 * math.sqrt(2.0) * sigma / v_break, 0.25))
+    return out
 
 
 def _adequacy(est: Estimate) -> bool | None:
