@@ -37,10 +37,12 @@ def compile_kernels(group: str | None = None) -> None:
         simulate_free_decay_batch,
         simulate_lugre_oscillator,
     )
+    from driveid.sim._first_run import compiled_only
     from driveid.sim.presets import preset
 
     if group in (None, "drive"):
-        simulate_drive(preset("testbed"), duration=0.05)  # event-located RK4
+        with compiled_only():  # a run this short would otherwise be interpreted
+            simulate_drive(preset("testbed"), duration=0.05)  # event-located RK4
     if group in (None, "smooth"):
         simulate_free_decay_batch(J=1.0, K=2.0, c_mean=0.1, fk_mean=0.01, x0=1.0,
                                   duration=0.05)
