@@ -132,11 +132,30 @@ def test_arithmetic_python_refuses_falls_back_to_the_compiled_kernel(cold, monke
 
 
 def test_budget_variable_is_checked(monkeypatch):
-    monkeypatch.setenv(_first_run.BUDGET_ENV, "lots")
-    with pytest.raises(ConfigError, match="DRIVEID_INTERPRET_STEPS='lots' must be a whole"):
-        _first_run.interpret_budget()
+    for bad in ("lots", "-1", "inf", "nan"):
+        monkeypatch.setenv(_first_run.BUDGET_ENV, bad)
+        with pytest.raises(ConfigError, match=f"DRIVEID_INTERPRET_STEPS='{bad}' must be a "
+                                              "number of steps >= 0"):
+            _first_run.interpret_budget()
+    monkeypatch.setenv(_first_run.BUDGET_ENV, "2e5")
+    assert _first_run.interpret_budget() == 200_000
     monkeypatch.setenv(_first_run.BUDGET_ENV, "")
     assert _first_run.interpret_budget() == _first_run.DEFAULT_BUDGET
+
+
+def test_a_bad_budget_is_one_clean_line_on_the_command_line(tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    from driveid.cli import cli
+
+    monkeypatch.setenv(_first_run.BUDGET_ENV, "lots")
+    res = CliRunner().invoke(cli, ["simulate", "drive", "--preset", "testbed-a", "--duration",
+                                   "0.1", "--out", str(tmp_path / "a.csv")])
+    assert res.exit_code == 2, res.output
+    assert res.stderr.strip().splitlines() == [
+        "error: DRIVEID_INTERPRET_STEPS='lots' must be a number of steps >= 0 (0: always "
+        "compile); unset it for the default 100000"]
+    assert not (tmp_path / "a.csv").exists()
 
 
 _ARGS = """(np.zeros(2), np.ones(1, dtype=np.int64), np.zeros((3, 11)), np.zeros((2, 1)),

@@ -28,6 +28,7 @@ test suite sets it so that its results do not depend on the state of the cache).
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import threading
 import types
@@ -66,19 +67,19 @@ def interpret_budget() -> int:
     Raises
     ------
     ConfigError
-        If ``DRIVEID_INTERPRET_STEPS`` is not a whole number >= 0.
+        If ``DRIVEID_INTERPRET_STEPS`` is not a finite number >= 0 (``1e5`` is fine).
     """
     raw = os.environ.get(BUDGET_ENV, "").strip()
     if not raw:
         return DEFAULT_BUDGET
     try:
-        value = int(raw)
+        value = float(raw)
     except ValueError:
-        value = -1
-    if value < 0:
-        raise ConfigError(f"{BUDGET_ENV}={raw!r} must be a whole number of steps >= 0 (0: "
-                          f"always compile); unset it for the default {DEFAULT_BUDGET}")
-    return value
+        value = math.nan
+    if not 0 <= value < math.inf:
+        raise ConfigError(f"{BUDGET_ENV}={raw!r} must be a number of steps >= 0 (0: always "
+                          f"compile); unset it for the default {DEFAULT_BUDGET}")
+    return int(value)
 
 
 @contextlib.contextmanager
