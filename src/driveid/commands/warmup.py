@@ -3,6 +3,8 @@
 The simulators' numba kernels are compiled on first use (about 30 s) and cached on disk
 (numba's cache: beside the package, or ``NUMBA_CACHE_DIR``). On a terminal the command line
 says so when it happens (:mod:`driveid.sim._compile_notice`); this command does it ahead.
+Until the drive kernel is compiled, short drive runs are interpreted
+(:mod:`driveid.sim._first_run`); this command compiles it regardless.
 """
 
 from __future__ import annotations
