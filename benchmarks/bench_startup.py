@@ -6,10 +6,8 @@ timed in the same run. Target (issue 18): ``driveid --help`` <= 2x the numpy imp
 
 With ``--compile`` it also times ``driveid warmup`` (every simulation kernel) with an empty
 numba cache (a fresh ``NUMBA_CACHE_DIR``: the first simulation after an install) against the
-same command loading that cache, and (issue 28) the first ``driveid simulate drive --preset
-testbed-a`` after an install (an empty cache: it compiles the drive kernel) against the same
-command loading the cache, with the CPU seconds of each (on a shared machine the wall time
-also counts other people's work; the target is <= 10 s).
+same command loading that cache. The first ``driveid simulate drive`` after an install
+(issue 28) has its own benchmark, ``benchmarks/bench_first_run.py``.
 
 Run: ``python benchmarks/bench_startup.py [--repeats 15] [--compile]``
 """
@@ -29,22 +27,14 @@ BIN = Path(sys.executable).parent
 
 
 def _time(cmd: list[str], repeats: int, **extra_env: str) -> float:
-    return _time_cpu(cmd, repeats, **extra_env)[0]
-
-
-def _time_cpu(cmd: list[str], repeats: int, **extra_env: str) -> tuple[float, float]:
-    """Median wall time [s] and median CPU time of the child process [s]."""
+    """Median wall time [s] of ``cmd`` over ``repeats`` fresh processes."""
     env = dict(os.environ, MPLBACKEND="Agg", **extra_env)
-    times, cpus = [], []
+    times = []
     for _ in range(repeats):
-        before = os.times()
         start = time.perf_counter()
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, env=env)
         times.append(time.perf_counter() - start)
-        after = os.times()
-        cpus.append(after.children_user + after.children_system
-                    - before.children_user - before.children_system)
-    return statistics.median(times), statistics.median(cpus)
+    return statistics.median(times)
 
 
 def main() -> None:
@@ -72,14 +62,6 @@ def main() -> None:
             warm = _time([driveid, "warmup"], 3, NUMBA_CACHE_DIR=cache)
         print(f"driveid warmup, empty kernel cache  {cold:7.1f} s    {cold / warm:5.1f}x the "
               f"same command loading the cache ({warm:.1f} s)")
-        with tempfile.TemporaryDirectory() as cache:
-            out = str(Path(cache) / "first.csv")
-            cmd = [driveid, "simulate", "drive", "--preset", "testbed-a", "--out", out,
-                   "--overwrite"]
-            cold, cold_cpu = _time_cpu(cmd, 1, NUMBA_CACHE_DIR=cache)
-            warm, warm_cpu = _time_cpu(cmd, 3, NUMBA_CACHE_DIR=cache)
-        print(f"first simulate drive, empty cache   {cold:7.1f} s    (CPU {cold_cpu:.1f} s; "
-              f"target <= 10 s); loading the cache {warm:.1f} s (CPU {warm_cpu:.1f} s)")
 
 
 if __name__ == "__main__":

@@ -15,6 +15,9 @@ import matplotlib
 import pytest
 
 matplotlib.use("Agg")
+# the simulators' results must not depend on the state of numba's cache: no interpreted
+# first runs (driveid.sim._first_run; tests/sim/test_first_run.py turns them on)
+os.environ.setdefault("DRIVEID_INTERPRET_STEPS", "0")
 
 #: ../shared/data beside the repository, present on developer machines and in CI only.
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"

@@ -3,6 +3,8 @@
 The simulators' numba kernels are compiled on first use (about 30 s) and cached on disk
 (numba's cache: beside the package, or ``NUMBA_CACHE_DIR``). On a terminal the command line
 says so when it happens (:mod:`driveid.sim._compile_notice`); this command does it ahead.
+Until the drive kernel is compiled, short drive runs are interpreted
+(:mod:`driveid.sim._first_run`); this command compiles it regardless.
 """
 
 from __future__ import annotations
@@ -37,10 +39,12 @@ def compile_kernels(group: str | None = None) -> None:
         simulate_free_decay_batch,
         simulate_lugre_oscillator,
     )
+    from driveid.sim._first_run import compiled_only
     from driveid.sim.presets import preset
 
     if group in (None, "drive"):
-        simulate_drive(preset("testbed"), duration=0.05)  # event-located RK4
+        with compiled_only():  # a run this short would otherwise be interpreted
+            simulate_drive(preset("testbed"), duration=0.05)  # event-located RK4
     if group in (None, "smooth"):
         simulate_free_decay_batch(J=1.0, K=2.0, c_mean=0.1, fk_mean=0.01, x0=1.0,
                                   duration=0.05)

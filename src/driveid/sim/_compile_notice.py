@@ -4,7 +4,9 @@ The first simulation after an install (or after the kernels' source changed) com
 numba kernels (about 30 s for all of them), later ones load numba's on-disk cache. numba
 broadcasts its ``"numba:compile"`` event only when it really compiles, not when it loads the
 cache, so the notice is exact wherever the cache lives (beside the package,
-``NUMBA_CACHE_DIR``, or a per-user directory when the package's folder is read-only).
+``NUMBA_CACHE_DIR``, or a per-user directory when the package's folder is read-only). A
+short drive run before the drive kernel is compiled runs it interpreted and compiles
+nothing (:mod:`driveid.sim._first_run`): no notice then.
 
 The notice is an INFO record of the ``driveid.compile`` logger: silent for library users
 unless they enable logging; the command line prints it on an interactive terminal.

@@ -627,11 +627,11 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     adaptive = rtol > 0.0 and max_stride > 1
     pos_scale = 0.0
     vel_scale = 0.0
-    m = 1  # grid steps in the step being taken
+    m = np.int64(1)  # grid steps in the step being taken
     m_pref = 1
     clean = False  # the step just taken was one RK4 step without events: its estimate holds
-    step0 = 0
-    step = 0
+    step0 = np.int64(0)
+    step = np.int64(0)
     d_grid = par[fbr, 4] / h if has_fb else 0.0  # the delay in grid steps
     delayed = has_fb and par[fbr, 4] > 0.0
     ring = _ring(par[fbr, 4], h) if delayed else 0
@@ -644,7 +644,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     # loses its order, so a step ends there. Nodes come in time order: a scan of the grid
     # flags up to the current step finds them in turn.
     kink_next = par[fbr, 4] if delayed else math.inf
-    kink_scan = 0
+    kink_scan = np.int64(0)
     nodes_made = 0
     kinks_found = 0
     while True:

@@ -68,6 +68,7 @@ import numpy as np
 
 from driveid.errors import ParameterError, SimulationError
 from driveid.sim import _kernels as _k
+from driveid.sim._first_run import run_drive_kernel
 from driveid.sim.drive_types import (
     BacklashLink,
     BodyParams,
@@ -511,9 +512,13 @@ def _run_kernel(run: dict, max_events: int, energy: bool = False) -> tuple:
     """
     nb = run["x0"].size
     y0 = run["y0"] if energy else run["y0"][:2 * nb].copy()
-    out = _k.drive_kernel(y0, run["modes0"], run["par"], run["inp"], run["abort_limit"],
-                          run["fs"], run["n_out"], run["n_sub"], max_events, False,
-                          np.zeros(2), run["rtol"], run["max_stride"])
+    args = (y0, run["modes0"], run["par"], run["inp"], run["abort_limit"], run["fs"],
+            run["n_out"], run["n_sub"], max_events, False, np.zeros(2), run["rtol"],
+            run["max_stride"])
+    # compiled, or interpreted while the kernel is not compiled yet (a first short run);
+    # the energy pass repeats the first pass's choice (the same trajectory, bitwise)
+    out, run["interpreted"] = run_drive_kernel(args, (run["n_out"] - 1) * run["n_sub"] * nb,
+                                               interpreted=run.get("interpreted"))
     return out if energy else (*out[:3], None, *out[4:])
 
 
@@ -653,6 +658,7 @@ def _simulate_controlled(params, duration, fs, x0, v0, torque, max_step, max_eve
     par = run["par"]
     vector = False
     status, abort_index, abort_value = _k.OK, -1, 0.0
+    interpreted = None  # every period on the engine of the first (see _first_run)
     for k in range(math.ceil((n_fine - 1) / r_c)):
         s0 = k * r_c
         t_k = s0 / fs_in
@@ -677,9 +683,9 @@ def _simulate_controlled(params, duration, fs, x0, v0, torque, max_step, max_eve
         applied = queue.pop(0)
         s1 = min(s0 + r_c, n_fine - 1)
         inp = np.vstack([torque[:, s0:s1 + 1] + applied[:, None], np.zeros((1, s1 - s0 + 1))])
-        xk, vk, _, ek, ck, st, ai, _, modes = _k.drive_kernel(
-            y, modes, par, inp, math.inf, fs_in, s1 - s0 + 1, n_sub, max_events, k > 0, jump,
-            0.0, 1)
+        (xk, vk, _, ek, ck, st, ai, _, modes), interpreted = run_drive_kernel(
+            (y, modes, par, inp, math.inf, fs_in, s1 - s0 + 1, n_sub, max_events, k > 0, jump,
+             0.0, 1), (n_fine - 1) * n_sub * nb if k == 0 else 0, interpreted=interpreted)
         counts += ck
         if st != _k.OK:
             status, abort_index = st, s0 * n_sub + ai
