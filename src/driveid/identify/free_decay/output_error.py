@@ -548,7 +548,13 @@ def estimate_output_error(
         s2 = chosen["rss"] / dof
         for c in candidates:
             c["chi2"] = c["rss"] / s2 if s2 > 0 else (0.0 if c is chosen else math.inf)
-            c["cov"] = _ls_covariance(c["sol"], s2)
+            try:
+                c["cov"] = _ls_covariance(c["sol"], s2)
+            except IdentificationError:
+                if c is chosen:
+                    raise
+                c["cov"] = None  # a degenerate rival stop count: dropped, not fatal
+        candidates = [c for c in candidates if c["cov"] is not None]
         if quantum is not None:
             boot = bootstrap_covariance(problem, chosen, s2, quantum, bootstrap, rng,
                                          progress)
