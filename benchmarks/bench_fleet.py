@@ -8,10 +8,12 @@ prints
 * detection rate of faulty axes, false-alarm rate on healthy axis-months (target <= 1 %),
   median delay from fault onset to detection [months];
 * throughput [records/s] serial in this process (the baseline), on 1 Dask worker with one
-  record per task (the per-task overhead) and batched, and on 2 batched workers (``--workers
-  1 2 4 ...`` on a machine with more cores): records/s, efficiency against workers x the
-  in-process rate, processor time per record and overhead per task (issue 28), and what
-  100 000 axes per 8-hour shift needs.
+  record per task (the per-task overhead) and batched (those three on at most 48 records),
+  and on batched workers (``--workers 1 2 4 ...`` on a machine with more cores) over
+  ``--throughput-records``: records/s, efficiency against workers x the in-process rate,
+  processor time per record and overhead per task (issue 28), and what 100 000 axes per
+  8-hour shift needs; ``--methods output-error logdec`` for the costly and the cheapest
+  estimator.
 
 Run: ``MPLBACKEND=Agg .venv/bin/python benchmarks/bench_fleet.py [--axes 200] [--months 12]``.
 """
@@ -31,43 +33,48 @@ from driveid.health import assess_axis, make_blueprint
 from driveid.sim.fleet import read_fleet_truth, simulate_fleet
 
 
-def _throughput(files, n_workers, folder, batch_size=None):
-    name = f"throughput-{n_workers}-{batch_size}.sqlite"
+def _throughput(files, n_workers, folder, batch_size=None, method="output-error"):
+    name = f"throughput-{method}-{n_workers}-{batch_size}.sqlite"
     for suffix in ("", "-wal", "-shm"):  # a fresh catalogue: nothing may be skipped
         (folder / f"{name}{suffix}").unlink(missing_ok=True)
-    return identify_many([str(f) for f in files], method_options={"mass": 1.0},
-                         catalog=folder / name, n_workers=n_workers, progress=False,
-                         batch_size=batch_size)
+    return identify_many([str(f) for f in files], method=method,
+                         method_options={"mass": 1.0}, catalog=folder / name,
+                         n_workers=n_workers, progress=False, batch_size=batch_size)
 
 
-def _throughput_study(files, n_records, folder, workers=(1, 2)):
+def _throughput_study(files, n_records, folder, workers=(1, 2), method="output-error"):
     """In-process baseline, then Dask workers (one record per task, and batched).
 
     Efficiency = records/s / (workers x in-process records/s); the per-task overhead is the
     wall time each task costs beyond the in-process time of its records, x workers.
     """
     sample = files[: n_records]
-    identify_file(sample[0], method_options={"mass": 1.0})  # import and compile first
+    # the in-process baseline and the one-worker rows on at most 48 records (their rates do
+    # not depend on the count); the batched multi-worker rows on all of them
+    few = sample[:48]
+    identify_file(sample[0], method=method, method_options={"mass": 1.0})  # compile first
     t0, c0 = time.perf_counter(), time.process_time()
-    for f in sample:
-        identify_file(f, method_options={"mass": 1.0})
-    serial_wall = (time.perf_counter() - t0) / len(sample)
-    serial_cpu = (time.process_time() - c0) / len(sample)
+    for f in few:
+        identify_file(f, method=method, method_options={"mass": 1.0})
+    serial_wall = (time.perf_counter() - t0) / len(few)
+    serial_cpu = (time.process_time() - c0) / len(few)
     serial = 1.0 / serial_wall
     try:
         load = os.getloadavg()[0]
     except OSError:
         load = float("nan")
-    print(f"load average {load:.1f} on {os.cpu_count()} cores (throughput shares them)")
+    print(f"method {method}: load average {load:.1f} on {os.cpu_count()} cores "
+          "(throughput shares them)")
     print(f"{'run':34s} {'tasks':>5s} {'records/s':>9s} {'efficiency':>10s} "
           f"{'CPU ms/rec':>10s} {'overhead ms/task':>16s}")
     print(f"{'in-process (baseline)':34s} {'-':>5s} {serial:9.2f} {'1.00':>10s} "
           f"{serial_cpu * 1e3:10.0f} {'-':>16s}")
     rows = [(1, 1)] + [(w, None) for w in workers]
     for n_workers, batch in rows:
-        summary = _throughput(sample, n_workers, folder, batch)
+        chunk = few if n_workers == 1 else sample
+        summary = _throughput(chunk, n_workers, folder, batch, method)
         rate = summary.records_per_second
-        overhead = (summary.elapsed * n_workers - len(sample) * serial_wall) / summary.n_tasks
+        overhead = (summary.elapsed * n_workers - len(chunk) * serial_wall) / summary.n_tasks
         label = f"Dask {n_workers} worker(s), " + ("1 record/task" if batch == 1 else "batched")
         print(f"{label:34s} {summary.n_tasks:5d} {rate:9.2f} "
               f"{rate / (n_workers * serial):10.2f} "
@@ -92,6 +99,10 @@ def main() -> None:
     parser.add_argument("--skip-detection", action="store_true")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2],
                         help="Dask worker counts of the batched throughput rows.")
+    parser.add_argument("--methods", nargs="+", default=["output-error"],
+                        choices=["output-error", "logdec", "auto"],
+                        help="Estimators of the throughput study, each in turn (logdec is "
+                             "the cheapest).")
     args = parser.parse_args()
     folder = args.out or Path(tempfile.mkdtemp(prefix="driveid-fleet-"))
     t0 = time.perf_counter()
@@ -106,7 +117,9 @@ def main() -> None:
     files = sorted((folder / "plant").glob("*/*/20*.csv"))
 
     if not args.skip_throughput:
-        _throughput_study(files, args.throughput_records, folder, tuple(args.workers))
+        for method in args.methods:
+            _throughput_study(files, args.throughput_records, folder, tuple(args.workers),
+                              method)
     if args.skip_detection:
         return
     # the whole fleet on 2 workers into one catalogue
