@@ -8,6 +8,7 @@ simulation of the record (same run), the errors, and the coverage of the 95 % in
 over ``--runs`` noise realisations (issue 25 asks >= 100; pass a small count to check).
 
     PYTHONPATH=src python benchmarks/bench_drive_fit.py --runs 5
+    PYTHONPATH=src python benchmarks/bench_drive_fit.py --runs 112 --workers 16   # many cores
 """
 
 from __future__ import annotations
@@ -63,6 +64,34 @@ def _open_loop_timing() -> None:
           f"{est.diagnostics['n_simulations']} simulations; max |error| {100 * worst:.2f} %")
 
 
+def _setup(start_off: float):
+    truth = preset_testbed()
+    res = simulate_drive(truth, duration=5.0, fs=1000.0, x0=[1.0, 1.0, 1.0])
+    signs = [1 if i % 2 == 0 else -1 for i in range(len(NAMES))]
+    start, _, _ = with_values(truth, ZERO, ZERO, {
+        n: get_value(truth, ZERO, ZERO, n) * (1 + s * start_off)
+        for n, s in zip(NAMES, signs, strict=True)})
+    true = np.array([get_value(truth, ZERO, ZERO, n) for n in NAMES])
+    return truth, res, start, true
+
+
+def _one_fit(seed: int, start_off: float, noise: float, counts_per_rev: float):
+    """One noise realisation: (seconds, values, standard errors)."""
+    _, res, start, _ = _setup(start_off)
+    rng = np.random.default_rng(seed)
+    chans = {c: res.x[i] + rng.normal(0, noise, res.t.size)
+             for c, i in (("x1", 0), ("x3", 2))}
+    if counts_per_rev:
+        q = 2 * np.pi / counts_per_rev
+        chans = {c: np.round(y / q) * q for c, y in chans.items()}
+    rec = DriveRecord(t=res.t, channels=chans)
+    t0 = time.perf_counter()
+    est = estimate_drive(rec, start, estimate=NAMES)
+    seconds = time.perf_counter() - t0
+    return (seconds, np.array([est.value(n) for n in NAMES]),
+            np.array([est.stderr(n) for n in NAMES]))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=100)
@@ -70,38 +99,31 @@ def main() -> None:
     ap.add_argument("--counts-per-rev", type=float, default=8000.0,
                     help="encoder resolution; 0: no quantisation")
     ap.add_argument("--noise", type=float, default=2e-4, help="position noise sd [rad]")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="processes for the realisations (each fit on one core)")
     ap.add_argument("--skip-timing", action="store_true")
     args = ap.parse_args()
     if not args.skip_timing:
         _open_loop_timing()
-    truth = preset_testbed()
-    t0 = time.perf_counter()
-    res = simulate_drive(truth, duration=5.0, fs=1000.0, x0=[1.0, 1.0, 1.0])
+    truth, _, _, true = _setup(args.start_off)
     reps = 20
     t0 = time.perf_counter()
     for _ in range(reps):
         simulate_drive(truth, duration=5.0, fs=1000.0, x0=[1.0, 1.0, 1.0])
     one_sim = (time.perf_counter() - t0) / reps
-    signs = [1 if i % 2 == 0 else -1 for i in range(len(NAMES))]
-    start, _, _ = with_values(truth, ZERO, ZERO, {
-        n: get_value(truth, ZERO, ZERO, n) * (1 + s * args.start_off)
-        for n, s in zip(NAMES, signs, strict=True)})
-    true = np.array([get_value(truth, ZERO, ZERO, n) for n in NAMES])
     hits = np.zeros(len(NAMES))
     errors, times = [], []
-    for seed in range(args.runs):
-        rng = np.random.default_rng(seed)
-        chans = {c: res.x[i] + rng.normal(0, args.noise, res.t.size)
-                 for c, i in (("x1", 0), ("x3", 2))}
-        if args.counts_per_rev:
-            q = 2 * np.pi / args.counts_per_rev
-            chans = {c: np.round(y / q) * q for c, y in chans.items()}
-        rec = DriveRecord(t=res.t, channels=chans)
-        t0 = time.perf_counter()
-        est = estimate_drive(rec, start, estimate=NAMES)
-        times.append(time.perf_counter() - t0)
-        val = np.array([est.value(n) for n in NAMES])
-        se = np.array([est.stderr(n) for n in NAMES])
+    work = [(seed, args.start_off, args.noise, args.counts_per_rev) for seed in range(args.runs)]
+    if args.workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(args.workers) as pool:
+            outcomes = pool.map(_one_fit, *zip(*work, strict=True))
+            outcomes = list(outcomes)
+    else:
+        outcomes = (_one_fit(*w) for w in work)
+    for seed, (seconds, val, se) in enumerate(outcomes):
+        times.append(seconds)
         hits += np.abs(val - true) <= 1.96 * se
         errors.append(val / true - 1)
         print(f"run {seed}: {times[-1]:.1f} s, max |error| "
@@ -113,7 +135,6 @@ def main() -> None:
     for j, n in enumerate(NAMES):
         print(f"{n:16s} {100 * np.median(errors[:, j]):12.3f} "
               f"{100 * np.max(np.abs(errors[:, j])):12.3f} {hits[j] / args.runs:9.2f}")
-
 
 if __name__ == "__main__":
     main()
