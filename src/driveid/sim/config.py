@@ -58,7 +58,7 @@ from driveid.sim.drive import (
 )
 from driveid.sim.presets import PRESETS, preset, preset_units
 
-__all__ = ["RunOptions", "load_drive_config", "parse_drive_config", "simulate_config"]
+__all__ = ["RunOptions", "load_drive_config", "parse_drive_config", "read_toml", "simulate_config"]
 
 _TOP_KEYS = ("preset", "body", "link", "feedback", "run")
 _BODY_KEYS = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "fs_mean", "fs_delta",
@@ -340,15 +340,38 @@ def load_drive_config(path: str | Path) -> tuple[DriveParams, RunOptions]:
         unphysical; the message starts with the file name and the key path.
     """
     path = Path(path)
+    return parse_drive_config(read_toml(path, "drive config"), source=path.name)
+
+
+def read_toml(path: str | Path, what: str) -> dict:
+    """Read a TOML file, or raise one line naming the file and the fix.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, for the message (e.g. ``"drive config"``).
+
+    Returns
+    -------
+    dict
+        The parsed document.
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read or is not valid TOML.
+    """
+    path = Path(path)
     try:
         with open(path, "rb") as fh:
-            document = tomllib.load(fh)
+            return tomllib.load(fh)
     except OSError as exc:
-        raise ConfigError(f"cannot read the drive config {path}: {exc.strerror}; check the "
+        raise ConfigError(f"cannot read the {what} {path}: {exc.strerror}; check the "
                           f"path; got {str(path)!r}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path.name}: not valid TOML ({exc}); fix the syntax") from None
-    return parse_drive_config(document, source=path.name)
 
 
 def simulate_config(params: DriveParams, options: RunOptions, *,

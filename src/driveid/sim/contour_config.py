@@ -49,13 +49,12 @@ Every error is a :class:`~driveid.errors.ConfigError` naming the file and the ke
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from driveid.errors import ConfigError, ParameterError
-from driveid.sim.config import parse_drive_config
+from driveid.sim.config import parse_drive_config, read_toml
 from driveid.sim.drive_types import DriveParams
 
 __all__ = ["AxisConfig", "CirclePath", "ContourConfig", "ControllerParams", "MeasurementNoise",
@@ -411,12 +410,4 @@ def load_contour_config(path: str | Path) -> ContourConfig:
         If the file cannot be read or parsed or a value is invalid.
     """
     path = Path(path)
-    try:
-        with open(path, "rb") as fh:
-            document = tomllib.load(fh)
-    except OSError as exc:
-        raise ConfigError(f"cannot read the contour config {path}: {exc.strerror}; check the "
-                          f"path; got {str(path)!r}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path.name}: not valid TOML ({exc}); fix the syntax") from None
-    return parse_contour_config(document, source=path.name)
+    return parse_contour_config(read_toml(path, "contour config"), source=path.name)
