@@ -12,7 +12,11 @@ import numpy as np
 
 from driveid.identify.core._adequacy import Adequacy
 from driveid.identify.core._noise import hac_covariance
-from driveid.identify.free_decay._free_decay_structures import inadequacy_notes, structure_model
+from driveid.identify.free_decay._free_decay_structures import (
+    inadequacy_notes,
+    noise_model_widening,
+    structure_model,
+)
 
 __all__ = ["adequacy_of", "apply_verdict", "physics_warnings", "structure_fitted"]
 
@@ -41,6 +45,8 @@ def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
     -------
     (ndarray, ndarray, str)
         Estimate, covariance and its kind (``prewhitened``, ``bootstrap``, ``sandwich``).
+        A prewhitened covariance is widened for the sampling error of the AR noise model
+        (:func:`~driveid.identify.free_decay._free_decay_structures.noise_model_widening`).
     """
     richer = verdict["richer"]
     if richer is not None:
@@ -55,8 +61,12 @@ def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
             cov_s = hac_covariance(jac, richer["white_residual"])
             return theta, cov_s, "sandwich"
         return theta, cov_s, "prewhitened"
-    if verdict["whiteness"]["white"] or quantum is not None:
-        return p, cov, "bootstrap" if quantum is not None else "prewhitened"
+    if quantum is not None:
+        return p, cov, "bootstrap"
+    if verdict["whiteness"]["white"]:
+        # widened for the AR model's own sampling error (none for white noise)
+        chosen = min(candidates, key=lambda c: c["rss"])
+        return p, noise_model_widening(problem, chosen, cov), "prewhitened"
     sol = min(candidates, key=lambda c: c["rss"])["sol"]
     if sol.jac is None:  # long record: no whole Jacobian for the sandwich
         return p, cov, "prewhitened (sandwich not formed above 131 072 samples)"
