@@ -189,7 +189,9 @@ def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, seg
 
     Notes
     -----
-    The Jacobian is central differences of the (unfiltered) model, prewhitened afterwards.
+    The Jacobian is that of the (unfiltered) model, prewhitened afterwards: analytic
+    (:func:`~driveid.identify.free_decay._free_response.response`) where ``q = 0``, else
+    central differences.
     """
     lower, upper = _bounds(theta0.size, per, len(times), passive)
     if add_quad:
@@ -204,20 +206,12 @@ def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, seg
         return np.where(np.isfinite(r), r, 1e6)
 
     def jac(theta):
-        # central differences of the model itself, then the filter: forward differences
-        # taken after prewhitening carry the round-off of f amplified by the filter's gain
-        # (up to 10⁴ in a deep low-pass stopband), which made the error bars 3-10x short
-        cols = np.empty((y_w.size, theta.size))
-        for i in range(theta.size):
-            h = 1e-6 * max(abs(float(theta[i])), 1e-3)
-            up, down = theta.copy(), theta.copy()
-            up[i] += h
-            down[i] -= h
-            with np.errstate(over="ignore", invalid="ignore"):
-                diff = (structure_model(times, up, counts, per, add_drift, add_quad)
-                        - structure_model(times, down, counts, per, add_drift, add_quad))
-            cols[:, i] = -noise.whiten(diff / (2.0 * h), segments)
-        return np.where(np.isfinite(cols), cols, 0.0)
+        # derivatives of the model itself, then the filter: differences taken after the
+        # filter carry the round-off of f amplified by its gain (10⁴-10⁵ in a deep low-pass
+        # stopband), which made the error bars 3-10x short; where q = 0 the columns are the
+        # analytic ones (central differences of f still carry ~1e-8 of round-off)
+        cols = _structure_jacobian(times, theta, counts, per, add_drift, add_quad)
+        return -noise.whiten(np.where(np.isfinite(cols), cols, 0.0), segments)
 
     sol = least_squares(resid, theta0, jac=jac, bounds=(lower, upper), x_scale="jac",
                         max_nfev=max_nfev * theta0.size, method="trf")
@@ -346,6 +340,42 @@ def _common_noise_gain(fits, name, sizes, t_d, y_d, counts, per, seg_d, options,
     n = fits[name]["white_residual"].size
     gain = n * math.log(max(base["rss"], 1e-300) / max(rich_rss, 1e-300))
     return gain - (sizes[name] - sizes[BASE]) * math.log(max(n, 2))
+
+
+def _structure_jacobian(times, theta, counts, per, add_drift, add_quad):
+    """Jacobian of :func:`structure_model`: analytic at ``q = 0``, else central differences."""
+    lay = _layout(len(times), per, add_drift, add_quad)
+    n = sum(t.size for t in times)
+    cols = np.zeros((n, theta.size))
+    q = float(theta[lay["quad"]]) if add_quad else 0.0
+    if q == 0.0:
+        row = 0
+        for r, (t, n_half) in enumerate(zip(times, counts, strict=True)):
+            k = 5 + per * r
+            _, jac, _ = response(t, theta[:5], theta[k], theta[k + 1], n_half)
+            rows = slice(row, row + t.size)
+            cols[rows, :5] = jac[:, :5]
+            cols[rows, k:k + 2] = jac[:, 5:]
+            if per == 3:
+                cols[rows, k + 2] = t - t[0]
+            if add_drift:
+                cols[rows, lay["drift"] + r] = t - t[0]
+            row += t.size
+        numeric = [lay["quad"]] if add_quad else []
+    else:
+        numeric = range(theta.size)
+    for i in numeric:
+        h = 1e-6 * max(abs(float(theta[i])), 1e-3)
+        up, down = theta.copy(), theta.copy()
+        up[i] += h
+        down[i] -= h
+        if i == lay.get("quad") and down[i] < 0.0:  # drag >= 0: one-sided at the bound
+            down[i], h = theta[i], 0.5 * h
+        with np.errstate(over="ignore", invalid="ignore"):
+            cols[:, i] = (structure_model(times, up, counts, per, add_drift, add_quad)
+                          - structure_model(times, down, counts, per, add_drift, add_quad)) \
+                / (2.0 * h)
+    return cols
 
 
 def _trim(white_residual, segments, order, top):
