@@ -133,19 +133,27 @@ class Replicates:
     rss_ratio_sd: float
     ar_draws: tuple[tuple[float, ...], ...] = ()
 
-    def rss_limit(self, floor: float = 1.05) -> float:
-        """Largest plausible ``RSS_raw(PE)/RSS_raw(LS)`` [-]: mean + 4 sd, at least ``floor``.
+    def rss_limit(self, floor: float = 1.05, cap: float = 2.0) -> float:
+        """Largest plausible ``RSS_raw(PE)/RSS_raw(LS)`` [-]: mean + 5 sd within [floor, cap].
+
+        Five sd: the ratio is skewed to the right and its sd comes from 32 draws (±13 %).
+        The cap: an AR model fitted to a misfit (air drag at the mode) puts a pole on the
+        mode, and its own replicates then allow anything (limits of 10⁴ were seen); a noise
+        model that explains more than half of the raw residual power as absorbed by the
+        parameters is not describing noise.
 
         Parameters
         ----------
         floor : float
             Smallest limit returned [-].
+        cap : float
+            Largest limit returned [-].
 
         Returns
         -------
         float
         """
-        return max(floor, self.rss_ratio_mean + 4.0 * self.rss_ratio_sd)
+        return min(cap, max(floor, self.rss_ratio_mean + 5.0 * self.rss_ratio_sd))
 
 
 def _stationary(a: np.ndarray) -> bool:

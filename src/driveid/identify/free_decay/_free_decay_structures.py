@@ -478,11 +478,12 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
         white_rss = rss if white_rss is None else white_rss
         model = fit_noise_model(resid, segments=problem.segments, n_params=n_par)
         limit = 1.05
-        if not model.is_white and problem.n <= SINK_ROWS:
+        if round_ > 0 and not model.is_white and problem.n <= SINK_ROWS:
             # what the fit absorbed biases the AR model towards white; and strongly coloured
             # noise (few effective samples) lets a genuine prewhitened fit raise the raw RSS
             # by more than 5 %: both from replicates through the linearised fit, under the
-            # model the current residuals imply
+            # model the current residuals imply (not on the white fit's: that one is only
+            # a first prewhitening filter, and its RSS is the reference)
             jac = problem.model(chosen["p"], chosen["counts"])[1]
             rep = linearised_replicates(model, jac, resid, segments=problem.segments)
             model, limit = rep.noise, rep.rss_limit()

@@ -18,7 +18,7 @@ from driveid.identify.free_decay._free_decay_structures import (
     structure_model,
 )
 
-__all__ = ["adequacy_of", "apply_verdict", "physics_warnings", "structure_fitted"]
+__all__ = ["adequacy_of", "apply_verdict", "physics_warnings", "slow_noise", "structure_fitted"]
 
 
 def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
@@ -192,13 +192,88 @@ def adequacy_of(verdict, problem, p, covariance_kind):
             "this record: its prewhitened residuals are not white (Ljung-Box p = "
             f"{white['p_value']:.2g}); " + "; ".join(found)
             + f"; error bars are {covariance_kind}")
+    slow = slow_noise(verdict["white_residual"], problem, p)
+    if slow["excess"]:
+        notes.append(slow["note"])
+        warnings.append(slow["note"])
     adequacy = Adequacy(whiteness=white,
                         structures=_json_structures(test),
                         covariance=covariance_kind, notes=tuple(notes)).to_dict()
     # adequate: the structure finally fitted (the richer one where chosen) leaves white
     # prewhitened residuals
     adequacy["adequate"] = bool(white["white"])
+    adequacy["slow_noise"] = {k: v for k, v in slow.items() if k != "note"}
     return adequacy, warnings
+
+
+#: Significance of the low-frequency excess test [-] (1 % false alarms on white noise).
+SLOW_P = 0.01
+
+
+def slow_noise(white_residual, problem, p):
+    """Test the prewhitened residuals for power the noise model misses below half the mode.
+
+    Noise slower than the record (1/f-like wander, sensor drift) is absorbed by the offset-
+    and drift-like unknowns (``theta_k_delta``, the damping asymmetry): the residuals, and the
+    AR model fitted to them, no longer show it, and those error bars come out too small. What
+    a record still shows is the part at periods of a tenth to a third of it: the periodogram
+    of the prewhitened residuals at the Fourier frequencies below half the damped mode
+    frequency, pooled over records, against its white-noise mean ``σ_w²`` (``2m R ~ χ²_{2m}``
+    for ``m`` ordinates). Not in the thesis.
+
+    Parameters
+    ----------
+    white_residual : ndarray, shape (n_w,)
+        Prewhitened residuals of every record, stacked [m or rad].
+    problem : output_error._Problem
+        The fit problem (records, noise model).
+    p : ndarray, shape (k,)
+        The estimate (``omega0``, ``zeta_plus`` first).
+
+    Returns
+    -------
+    dict
+        ``excess`` (bool), ``ratio`` (mean ordinate / σ_w² [-]), ``ordinates`` (m),
+        ``p_value``, ``below_hz`` [Hz], ``note`` (the warning, naming the record length and
+        the parameters affected).
+    """
+    from scipy.stats import chi2
+
+    order = problem.noise.order
+    f_d = float(p[0]) * math.sqrt(max(1.0 - float(p[1]) ** 2, 1e-12)) / (2.0 * math.pi)
+    w = np.asarray(white_residual, float)
+    var = float(w @ w) / max(w.size, 1)
+    total, count, start, duration = 0.0, 0, 0, 0.0
+    for t in problem.t:
+        m = max(t.size - order, 0)
+        part = w[start:start + m]
+        start += m
+        span = float(t[-1] - t[0])
+        duration = max(duration, span)
+        if part.size < 16 or span <= 0:
+            continue
+        k = int(0.5 * f_d * span)  # Fourier frequencies j/span below f_d/2
+        if k < 1:
+            continue
+        spec = np.abs(np.fft.rfft(part - part.mean())[1:k + 1]) ** 2 / part.size
+        total += float(spec.sum())
+        count += spec.size
+    out = {"excess": False, "ratio": math.nan, "ordinates": count, "p_value": 1.0,
+           "below_hz": 0.5 * f_d, "note": ""}
+    if count < 3 or not var > 0:
+        return out
+    ratio = total / count / var
+    p_value = float(chi2.sf(2.0 * count * ratio, 2 * count))
+    out.update(ratio=ratio, p_value=p_value, excess=bool(p_value < SLOW_P))
+    if out["excess"]:
+        out["note"] = (
+            f"slow noise: below {0.5 * f_d:.3g} Hz the prewhitened residuals hold {ratio:.1f}x "
+            f"the power of the noise model (p = {p_value:.2g}); wander this slow (1/f-like "
+            f"noise, sensor drift) is partly absorbed as an offset and a drift in a "
+            f"{duration:.3g} s record, so the error bars of fk_delta (theta_k_delta) and "
+            "c_delta (the damping asymmetry) are likely too small; record several "
+            "correlation times longer, fit several records, or add --drift")
+    return out
 
 
 def _json_structures(test):
