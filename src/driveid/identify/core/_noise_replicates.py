@@ -162,7 +162,8 @@ def _stationary(a: np.ndarray) -> bool:
 
 def linearised_replicates(noise: NoiseModel, jac: np.ndarray, residual: np.ndarray, *,
                           segments: Sequence[int] | None = None, draws: int = DRAWS,
-                          rounds: int = ROUNDS) -> Replicates:
+                          rounds: int = ROUNDS,
+                          whitening: NoiseModel | None = None) -> Replicates:
     """Bias-correct an AR noise model fitted to a fit's residuals; calibrate the RSS growth.
 
     Parameters
@@ -180,6 +181,9 @@ def linearised_replicates(noise: NoiseModel, jac: np.ndarray, residual: np.ndarr
         Replicates per round [-].
     rounds : int
         Rounds of the bias correction [-].
+    whitening : NoiseModel, optional
+        The prewhitening filter of the fit that left ``residual`` (its projection is what
+        the replicates pass through); default the model being corrected.
 
     Returns
     -------
@@ -210,13 +214,14 @@ def linearised_replicates(noise: NoiseModel, jac: np.ndarray, residual: np.ndarr
     ratios: list[float] = []
     for _ in range(max(rounds, 1)):
         model = replace(noise, ar=tuple(float(v) for v in a))
-        jw = model.whiten(jac, lengths)
+        fitter = model if whitening is None else whitening
+        jw = fitter.whiten(jac, lengths)
         gram = jw.T @ jw
         gen = np.random.default_rng(_SEED)  # common random numbers: rounds comparable
         found, ratios = [], []
         for _ in range(draws):
             e = simulate_noise(model, lengths, 1.0, gen)
-            r_pe = e - jac @ np.linalg.lstsq(gram, jw.T @ model.whiten(e, lengths),
+            r_pe = e - jac @ np.linalg.lstsq(gram, jw.T @ fitter.whiten(e, lengths),
                                              rcond=None)[0]
             r_ls = e - jac @ np.linalg.lstsq(jac, e, rcond=None)[0]
             ratios.append(float(r_pe @ r_pe) / max(float(r_ls @ r_ls), 1e-300))

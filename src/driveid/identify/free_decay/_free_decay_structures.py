@@ -485,7 +485,8 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
             # model the current residuals imply (not on the white fit's: that one is only
             # a first prewhitening filter, and its RSS is the reference)
             jac = problem.model(chosen["p"], chosen["counts"])[1]
-            rep = linearised_replicates(model, jac, resid, segments=problem.segments)
+            rep = linearised_replicates(model, jac, resid, segments=problem.segments,
+                                        whitening=problem.noise)
             model, limit = rep.noise, rep.rss_limit()
             problem.noise_replicates = rep
         if rss > limit * white_rss:
