@@ -20,6 +20,11 @@ from driveid.identify.free_decay._free_decay_structures import (
 
 __all__ = ["adequacy_of", "apply_verdict", "physics_warnings", "slow_noise", "structure_fitted"]
 
+#: AR order from which a non-white prewhitened residual may be the noise spectrum itself [-].
+HIGH_ORDER = 20
+#: Significance of the low-frequency excess test [-] (1 % false alarms on white noise).
+SLOW_P = 0.01
+
 
 def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
     """Take a chosen richer structure's fit, or widen inadequate error bars (sandwich).
@@ -186,6 +191,14 @@ def adequacy_of(verdict, problem, p, covariance_kind):
         omega_d = float(p[0]) * math.sqrt(max(1.0 - float(p[1]) ** 2, 1e-12))
         found = inadequacy_notes(w_res, raw, 1.0 / dt, omega_d,
                                  test["comparison"] if test else None)
+        order = (richer["noise"] if richer is not None else problem.noise).order
+        if order >= HIGH_ORDER:
+            # an AR model of a filter's stopband (zeros at Nyquist) never whitens fully: the
+            # residuals can be the noise itself (seen on low-pass noise of a correct model)
+            found.append(
+                f"or the noise itself: its AR({order}) model is long, as for a sensor "
+                "behind a low-pass filter, whose stopband no AR model follows; the sandwich "
+                "error bars stay honest then")
         notes += found
         warnings.append(
             "no structure tried (viscous + Coulomb, + drift, + quadratic damping) explains "
@@ -206,8 +219,6 @@ def adequacy_of(verdict, problem, p, covariance_kind):
     return adequacy, warnings
 
 
-#: Significance of the low-frequency excess test [-] (1 % false alarms on white noise).
-SLOW_P = 0.01
 
 
 def slow_noise(white_residual, problem, p):
