@@ -217,7 +217,8 @@ def white_noise(residual: np.ndarray) -> NoiseModel:
 
 
 def fit_noise_model(residual: np.ndarray, *, segments: Sequence[int] | None = None,
-                    max_order: int | None = None, n_params: int = 0) -> NoiseModel:
+                    max_order: int | None = None, n_params: int = 0,
+                    order: int | None = None) -> NoiseModel:
     """Fit an AR(p) model to residuals by Burg's method, the order by BIC.
 
     Parameters
@@ -232,6 +233,8 @@ def fit_noise_model(residual: np.ndarray, *, segments: Sequence[int] | None = No
     n_params : int
         Parameters of the fitted model [-]; the innovation variance is scaled by
         ``n/(n - n_params)`` (the residuals are that much smaller than the noise).
+    order : int, optional
+        Fit exactly this order [-] (no BIC choice; still capped by the record length).
 
     Returns
     -------
@@ -258,6 +261,8 @@ def fit_noise_model(residual: np.ndarray, *, segments: Sequence[int] | None = No
             f"{int(np.sum(~np.isfinite(r)))})")
     lengths = segment_lengths(segments, r.size)
     limit = MAX_ORDER if max_order is None else int(max_order)
+    if order is not None:
+        limit = int(order)
     limit = max(0, min(limit, min(lengths) // _SAMPLES_PER_COEFF, r.size // _SAMPLES_PER_COEFF))
     variance = float(r @ r / r.size)
     dof = max(r.size - n_params, 1)
@@ -290,7 +295,7 @@ def fit_noise_model(residual: np.ndarray, *, segments: Sequence[int] | None = No
         a = np.concatenate([a - k * a[::-1], [k]])
         power *= max(1.0 - k * k, 1e-300)
         bic.append(n_total * math.log(power) + m * math.log(n_total))
-        if bic[-1] == min(bic):
+        if (order is None and bic[-1] == min(bic)) or m == order:
             best_a, best_power = a.copy(), power
     return NoiseModel(tuple(float(v) for v in best_a), best_power * scale, variance * scale,
                       int(r.size), tuple(bic), "burg")

@@ -7,7 +7,10 @@ honest on real records:
 * prewhitening of Jacobian blocks with carried filter state (:class:`StreamWhitener`), so
   that the blockwise normal equations of long records stay O(block) in memory;
 * AR noise simulated from a fitted :class:`~driveid.identify.core._noise.NoiseModel` for the
-  encoder bootstrap (:func:`simulate_noise`);
+  encoder bootstrap (:func:`simulate_noise`, from
+  :mod:`driveid.identify.core._noise_replicates`);
+* the noise model bias-corrected for what the fit absorbs, and the raw-RSS growth of the
+  prewhitened fit judged against replicates (:func:`noise_rounds`);
 * the nested structures that real free decays show, fitted on a decimated copy and compared
   by BIC on prewhitened residuals (:func:`structure_test`): ``+ drift`` (a linear drift per
   record) and ``+ quadratic damping`` — the aerodynamic drag ``c₂|x'|x'`` of a pendulum,
@@ -29,9 +32,15 @@ from scipy.signal import lfilter
 
 from driveid.identify.core._adequacy import Structure, compare_structures, ljung_box
 from driveid.identify.core._noise import NoiseModel, fit_noise_model, white_noise
-from driveid.identify.free_decay._free_response import kinetic_stop_count, response
+from driveid.identify.core._noise_replicates import (
+    linearised_replicates,
+    simulate_noise,
+    student_widening,
+)
+from driveid.identify.free_decay._free_response import SINK_ROWS, kinetic_stop_count, response
 
 __all__ = ["StreamWhitener", "simulate_noise", "structure_test", "fit_structure",
+           "noise_model_widening",
            "DRIFT", "QUADRATIC", "BASE"]
 
 BASE = "viscous + Coulomb"
@@ -80,39 +89,6 @@ class StreamWhitener:
             self.skip -= drop
             out = out[drop:]
         return out
-
-
-def simulate_noise(noise: NoiseModel, segments: Sequence[int], variance: float,
-                   rng: np.random.Generator) -> np.ndarray:
-    """Draw stacked AR noise of the model's spectrum, scaled to ``variance``.
-
-    Parameters
-    ----------
-    noise : NoiseModel
-        AR model (white for order 0).
-    segments : sequence of int
-        Samples of each record [-].
-    variance : float
-        Variance of the drawn noise [unit²].
-    rng : Generator
-        Random generator.
-
-    Returns
-    -------
-    ndarray, shape (sum(segments),)
-        Noise [unit]; a burn-in of 10/(1 - max|pole|) samples (at most 5000) per record
-        puts each record in the stationary state.
-    """
-    a = np.concatenate([[1.0], -np.asarray(noise.ar, float)])
-    poles = np.abs(np.roots(a)) if noise.order else np.zeros(1)
-    burn = int(min(5000, 10.0 / max(1.0 - float(np.max(poles)), 1e-3))) if noise.order else 0
-    parts = []
-    for length in segments:
-        w = rng.normal(size=length + burn)
-        parts.append(lfilter([1.0], a, w)[burn:] if noise.order else w)
-    e = np.concatenate(parts)
-    scale = math.sqrt(max(variance, 0.0) / max(float(e @ e) / e.size, 1e-300))
-    return e * scale
 
 
 def _layout(n_records: int, per: int, add_drift: bool, add_quad: bool) -> dict[str, int]:
@@ -210,6 +186,12 @@ def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, seg
     dict
         ``theta``, ``residual`` (raw), ``white_residual``, ``jac`` (prewhitened, n_w x k),
         ``rss`` (prewhitened).
+
+    Notes
+    -----
+    The Jacobian is that of the (unfiltered) model, prewhitened afterwards: analytic
+    (:func:`~driveid.identify.free_decay._free_response.response`) where ``q = 0``, else
+    central differences.
     """
     lower, upper = _bounds(theta0.size, per, len(times), passive)
     if add_quad:
@@ -223,11 +205,19 @@ def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, seg
         r = y_w - noise.whiten(f, segments)
         return np.where(np.isfinite(r), r, 1e6)
 
-    sol = least_squares(resid, theta0, bounds=(lower, upper), x_scale="jac",
+    def jac(theta):
+        # derivatives of the model itself, then the filter: differences taken after the
+        # filter carry the round-off of f amplified by its gain (10⁴-10⁵ in a deep low-pass
+        # stopband), which made the error bars 3-10x short; where q = 0 the columns are the
+        # analytic ones (central differences of f still carry ~1e-8 of round-off)
+        cols = _structure_jacobian(times, theta, counts, per, add_drift, add_quad)
+        return -noise.whiten(np.where(np.isfinite(cols), cols, 0.0), segments)
+
+    sol = least_squares(resid, theta0, jac=jac, bounds=(lower, upper), x_scale="jac",
                         max_nfev=max_nfev * theta0.size, method="trf")
     raw = y - structure_model(times, sol.x, counts, per, add_drift, add_quad)
     return {"theta": sol.x, "residual": raw, "white_residual": sol.fun,
-            "jac": -sol.jac, "rss": float(sol.fun @ sol.fun), "lower": lower,
+            "jac": -jac(sol.x), "rss": float(sol.fun @ sol.fun), "lower": lower,
             "upper": upper}
 
 
@@ -313,6 +303,19 @@ def structure_test(times: Sequence[np.ndarray], y: np.ndarray, p: np.ndarray,
                                     float(kept @ kept) / kept.size, kept.size, effect, command))
     comparison = compare_structures(candidates)
     best = next(c for c in candidates if c.name == comparison["chosen"])
+    if best is not candidates[0]:
+        common = _common_noise_gain(fits, best.name, sizes, t_d, y_d, counts, per, seg_d,
+                                    dict((o[0], o[1:]) for o in options), passive)
+        if common <= 0.0:
+            # strongly coloured noise (σ_w/σ ~ 1e-3 behind a low-pass) makes a 1 % change of
+            # the AR fit worth more than the BIC penalty: a richer structure must also win
+            # when both are prewhitened by one model (its own), so only the structure differs
+            comparison = dict(comparison, chosen=BASE, reason=(
+                f"'{BASE}' kept: '{best.name}' lowered the BIC only with its own noise "
+                f"model; with one AR({fits[best.name]['noise'].order}) model for both it does not "
+                f"(BIC {-common:.1f} higher): the difference is in the noise models, not "
+                "the physics"))
+            best = candidates[0]
     if best is not candidates[0]:  # each has its own noise model: say so, not Δk
         comparison["reason"] = (
             f"'{best.name}' chosen over '{BASE}': BIC lower by "
@@ -321,6 +324,58 @@ def structure_test(times: Sequence[np.ndarray], y: np.ndarray, p: np.ndarray,
             f"{best.effect}")
     return {"comparison": comparison, "fits": fits, "step": step, "counts": counts,
             "options": {name: (d, q) for name, d, q in options}}
+
+
+def _common_noise_gain(fits, name, sizes, t_d, y_d, counts, per, seg_d, options, passive):
+    """BIC gain of structure ``name`` over the base, both prewhitened by ``name``'s model.
+
+    The richer structure's own noise model: when the richer structure is right its
+    residuals are the noise (an AR model fitted to the base's misfit would hide the very
+    effect tested, e.g. air drag at the mode).
+    """
+    noise = fits[name]["noise"]
+    base = fit_structure(t_d, y_d, fits[BASE]["theta"], counts, per, False, False, noise,
+                         seg_d, passive=passive)
+    rich_rss = float(fits[name]["rss"])
+    n = fits[name]["white_residual"].size
+    gain = n * math.log(max(base["rss"], 1e-300) / max(rich_rss, 1e-300))
+    return gain - (sizes[name] - sizes[BASE]) * math.log(max(n, 2))
+
+
+def _structure_jacobian(times, theta, counts, per, add_drift, add_quad):
+    """Jacobian of :func:`structure_model`: analytic at ``q = 0``, else central differences."""
+    lay = _layout(len(times), per, add_drift, add_quad)
+    n = sum(t.size for t in times)
+    cols = np.zeros((n, theta.size))
+    q = float(theta[lay["quad"]]) if add_quad else 0.0
+    if q == 0.0:
+        row = 0
+        for r, (t, n_half) in enumerate(zip(times, counts, strict=True)):
+            k = 5 + per * r
+            _, jac, _ = response(t, theta[:5], theta[k], theta[k + 1], n_half)
+            rows = slice(row, row + t.size)
+            cols[rows, :5] = jac[:, :5]
+            cols[rows, k:k + 2] = jac[:, 5:]
+            if per == 3:
+                cols[rows, k + 2] = t - t[0]
+            if add_drift:
+                cols[rows, lay["drift"] + r] = t - t[0]
+            row += t.size
+        numeric = [lay["quad"]] if add_quad else []
+    else:
+        numeric = range(theta.size)
+    for i in numeric:
+        h = 1e-6 * max(abs(float(theta[i])), 1e-3)
+        up, down = theta.copy(), theta.copy()
+        up[i] += h
+        down[i] -= h
+        if i == lay.get("quad") and down[i] < 0.0:  # drag >= 0: one-sided at the bound
+            down[i], h = theta[i], 0.5 * h
+        with np.errstate(over="ignore", invalid="ignore"):
+            cols[:, i] = (structure_model(times, up, counts, per, add_drift, add_quad)
+                          - structure_model(times, down, counts, per, add_drift, add_quad)) \
+                / (2.0 * h)
+    return cols
 
 
 def _trim(white_residual, segments, order, top):
@@ -376,9 +431,19 @@ def inadequacy_notes(white_residual: np.ndarray, raw_residual: np.ndarray, fs: f
 
 
 def _same_noise(a: NoiseModel, b: NoiseModel) -> bool:
+    """Return True for the same order and spectral shapes within 5 % at every frequency.
+
+    Coefficients alone are no measure near the unit circle: AR(1) 0.96 and 0.97 differ by
+    0.01 but their power at zero frequency by 1.8x.
+    """
     if a.order != b.order:
         return False
-    return a.is_white or float(np.max(np.abs(np.subtract(a.ar, b.ar)))) < 0.02
+    if a.is_white:
+        return True
+    z = np.exp(-1j * np.linspace(0.0, math.pi, 512))
+    gain_a = np.abs(np.polyval(np.r_[-np.asarray(a.ar)[::-1], 1.0], z)) ** 2
+    gain_b = np.abs(np.polyval(np.r_[-np.asarray(b.ar)[::-1], 1.0], z)) ** 2
+    return float(np.max(np.abs(np.log(gain_a / gain_b)))) < 0.05
 
 
 def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
@@ -407,20 +472,31 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
     y = (problem.y[0] if len(problem.y) == 1 else np.concatenate(problem.y))
     white_rss = None
     first = (candidates, chosen)
-    for _ in range(rounds):
+    for round_ in range(rounds + 1):
         resid = y - problem.model(chosen["p"], chosen["counts"], False)[0]
         rss = float(resid @ resid)
-        if white_rss is None:
-            white_rss = rss
-        elif rss > 1.05 * white_rss:
+        white_rss = rss if white_rss is None else white_rss
+        model = fit_noise_model(resid, segments=problem.segments, n_params=n_par)
+        limit = 1.05
+        if round_ > 0 and not model.is_white and problem.n <= SINK_ROWS:
+            # what the fit absorbed biases the AR model towards white; and strongly coloured
+            # noise (few effective samples) lets a genuine prewhitened fit raise the raw RSS
+            # by more than 5 %: both from replicates through the linearised fit, under the
+            # model the current residuals imply (not on the white fit's: that one is only
+            # a first prewhitening filter, and its RSS is the reference)
+            jac = problem.model(chosen["p"], chosen["counts"])[1]
+            rep = linearised_replicates(model, jac, resid, segments=problem.segments,
+                                        whitening=problem.noise)
+            model, limit = rep.noise, rep.rss_limit()
+            problem.noise_replicates = rep
+        if rss > limit * white_rss:
             # the prewhitened fit wandered (an AR model fitted to a misfit, not to noise,
             # is blind at low frequencies): keep the white fit; assess() then tests the
             # structures and widens the error bars
-            problem.noise = white_noise(resid)
+            problem.noise = white_noise(_joined_resid(problem, first[1]))
             problem.noise_rejected = True
             return first
-        model = fit_noise_model(resid, segments=problem.segments, n_params=n_par)
-        if _same_noise(model, problem.noise):
+        if _same_noise(model, problem.noise) or round_ == rounds:
             if model.is_white:  # the white fit stands; report the model actually fitted
                 problem.noise = model
             break
@@ -438,12 +514,44 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
             break
         candidates = refits
         chosen = min(candidates, key=lambda c: c["rss"])
-    resid = y - problem.model(chosen["p"], chosen["counts"], False)[0]
-    if white_rss is not None and float(resid @ resid) > 1.05 * white_rss:
-        problem.noise = white_noise(resid)
-        problem.noise_rejected = True
-        return first
     return candidates, chosen
+
+
+def noise_model_widening(problem, chosen, cov: np.ndarray) -> np.ndarray:
+    """Widen a prewhitened covariance for the sampling error of its AR noise model.
+
+    Parameters
+    ----------
+    problem : output_error._Problem
+        The fit problem with its final noise model (and ``noise_replicates``).
+    chosen : dict
+        The chosen candidate (``p``, ``counts``).
+    cov : ndarray, shape (k, k)
+        Covariance of the estimate [parameter units²].
+
+    Returns
+    -------
+    ndarray, shape (k, k)
+        ``D cov D`` with ``D`` the Student factors of
+        :func:`~driveid.identify.core._noise_replicates.student_widening` (cov itself for
+        white noise, or when no replicates were drawn).
+    """
+    rep = getattr(problem, "noise_replicates", None)
+    if problem.noise.is_white or rep is None or problem.n > SINK_ROWS:
+        return cov
+    _, jac = problem.model(chosen["p"], chosen["counts"])
+    factors = student_widening(jac, _joined_resid(problem, chosen), rep,
+                               segments=problem.segments, n_params=jac.shape[1])
+    if factors.size != cov.shape[0]:
+        return cov
+    problem.widening = factors
+    return cov * np.outer(factors, factors)
+
+
+def _joined_resid(problem, candidate):
+    """Raw residuals of a candidate on every fitted sample."""
+    y = problem.y[0] if len(problem.y) == 1 else np.concatenate(problem.y)
+    return y - problem.model(candidate["p"], candidate["counts"], False)[0]
 
 
 def _against_bootstrap(lb: dict, boot_q) -> dict:

@@ -12,9 +12,18 @@ import numpy as np
 
 from driveid.identify.core._adequacy import Adequacy
 from driveid.identify.core._noise import hac_covariance
-from driveid.identify.free_decay._free_decay_structures import inadequacy_notes, structure_model
+from driveid.identify.free_decay._free_decay_structures import (
+    inadequacy_notes,
+    noise_model_widening,
+    structure_model,
+)
 
-__all__ = ["adequacy_of", "apply_verdict", "physics_warnings", "structure_fitted"]
+__all__ = ["adequacy_of", "apply_verdict", "physics_warnings", "slow_noise", "structure_fitted"]
+
+#: AR order from which a non-white prewhitened residual may be the noise spectrum itself [-].
+HIGH_ORDER = 20
+#: Significance of the low-frequency excess test [-] (1 % false alarms on white noise).
+SLOW_P = 0.01
 
 
 def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
@@ -41,6 +50,8 @@ def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
     -------
     (ndarray, ndarray, str)
         Estimate, covariance and its kind (``prewhitened``, ``bootstrap``, ``sandwich``).
+        A prewhitened covariance is widened for the sampling error of the AR noise model
+        (:func:`~driveid.identify.free_decay._free_decay_structures.noise_model_widening`).
     """
     richer = verdict["richer"]
     if richer is not None:
@@ -55,8 +66,12 @@ def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
             cov_s = hac_covariance(jac, richer["white_residual"])
             return theta, cov_s, "sandwich"
         return theta, cov_s, "prewhitened"
-    if verdict["whiteness"]["white"] or quantum is not None:
-        return p, cov, "bootstrap" if quantum is not None else "prewhitened"
+    if quantum is not None:
+        return p, cov, "bootstrap"
+    if verdict["whiteness"]["white"]:
+        # widened for the AR model's own sampling error (none for white noise)
+        chosen = min(candidates, key=lambda c: c["rss"])
+        return p, noise_model_widening(problem, chosen, cov), "prewhitened"
     sol = min(candidates, key=lambda c: c["rss"])["sol"]
     if sol.jac is None:  # long record: no whole Jacobian for the sandwich
         return p, cov, "prewhitened (sandwich not formed above 131 072 samples)"
@@ -176,19 +191,100 @@ def adequacy_of(verdict, problem, p, covariance_kind):
         omega_d = float(p[0]) * math.sqrt(max(1.0 - float(p[1]) ** 2, 1e-12))
         found = inadequacy_notes(w_res, raw, 1.0 / dt, omega_d,
                                  test["comparison"] if test else None)
+        order = (richer["noise"] if richer is not None else problem.noise).order
+        if order >= HIGH_ORDER:
+            # an AR model of a filter's stopband (zeros at Nyquist) never whitens fully: the
+            # residuals can be the noise itself (seen on low-pass noise of a correct model)
+            found.append(
+                f"or the noise itself: its AR({order}) model is long, as for a sensor "
+                "behind a low-pass filter, whose stopband no AR model follows; the sandwich "
+                "error bars stay honest then")
         notes += found
         warnings.append(
             "no structure tried (viscous + Coulomb, + drift, + quadratic damping) explains "
             "this record: its prewhitened residuals are not white (Ljung-Box p = "
             f"{white['p_value']:.2g}); " + "; ".join(found)
             + f"; error bars are {covariance_kind}")
+    slow = slow_noise(verdict["white_residual"], problem, p)
+    if slow["excess"]:
+        notes.append(slow["note"])
+        warnings.append(slow["note"])
     adequacy = Adequacy(whiteness=white,
                         structures=_json_structures(test),
                         covariance=covariance_kind, notes=tuple(notes)).to_dict()
     # adequate: the structure finally fitted (the richer one where chosen) leaves white
     # prewhitened residuals
     adequacy["adequate"] = bool(white["white"])
+    adequacy["slow_noise"] = {k: v for k, v in slow.items() if k != "note"}
     return adequacy, warnings
+
+
+
+
+def slow_noise(white_residual, problem, p):
+    """Test the prewhitened residuals for power the noise model misses below half the mode.
+
+    Noise slower than the record (1/f-like wander, sensor drift) is absorbed by the offset-
+    and drift-like unknowns (``theta_k_delta``, the damping asymmetry): the residuals, and the
+    AR model fitted to them, no longer show it, and those error bars come out too small. What
+    a record still shows is the part at periods of a tenth to a third of it: the periodogram
+    of the prewhitened residuals at the Fourier frequencies below half the damped mode
+    frequency, pooled over records, against its white-noise mean ``σ_w²`` (``2m R ~ χ²_{2m}``
+    for ``m`` ordinates). Not in the thesis.
+
+    Parameters
+    ----------
+    white_residual : ndarray, shape (n_w,)
+        Prewhitened residuals of every record, stacked [m or rad].
+    problem : output_error._Problem
+        The fit problem (records, noise model).
+    p : ndarray, shape (k,)
+        The estimate (``omega0``, ``zeta_plus`` first).
+
+    Returns
+    -------
+    dict
+        ``excess`` (bool), ``ratio`` (mean ordinate / σ_w² [-]), ``ordinates`` (m),
+        ``p_value``, ``below_hz`` [Hz], ``note`` (the warning, naming the record length and
+        the parameters affected).
+    """
+    from scipy.stats import chi2
+
+    order = problem.noise.order
+    f_d = float(p[0]) * math.sqrt(max(1.0 - float(p[1]) ** 2, 1e-12)) / (2.0 * math.pi)
+    w = np.asarray(white_residual, float)
+    var = float(w @ w) / max(w.size, 1)
+    total, count, start, duration = 0.0, 0, 0, 0.0
+    for t in problem.t:
+        m = max(t.size - order, 0)
+        part = w[start:start + m]
+        start += m
+        span = float(t[-1] - t[0])
+        duration = max(duration, span)
+        if part.size < 16 or span <= 0:
+            continue
+        k = int(0.5 * f_d * span)  # Fourier frequencies j/span below f_d/2
+        if k < 1:
+            continue
+        spec = np.abs(np.fft.rfft(part - part.mean())[1:k + 1]) ** 2 / part.size
+        total += float(spec.sum())
+        count += spec.size
+    out = {"excess": False, "ratio": math.nan, "ordinates": count, "p_value": 1.0,
+           "below_hz": 0.5 * f_d, "note": ""}
+    if count < 3 or not var > 0:
+        return out
+    ratio = total / count / var
+    p_value = float(chi2.sf(2.0 * count * ratio, 2 * count))
+    out.update(ratio=ratio, p_value=p_value, excess=bool(p_value < SLOW_P))
+    if out["excess"]:
+        out["note"] = (
+            f"slow noise: below {0.5 * f_d:.3g} Hz the prewhitened residuals hold {ratio:.1f}x "
+            f"the power of the noise model (p = {p_value:.2g}); wander this slow (1/f-like "
+            f"noise, sensor drift) is partly absorbed as an offset and a drift in a "
+            f"{duration:.3g} s record, so the error bars of fk_delta (theta_k_delta) and "
+            "c_delta (the damping asymmetry) are likely too small; record several "
+            "correlation times longer, fit several records, or add --drift")
+    return out
 
 
 def _json_structures(test):
