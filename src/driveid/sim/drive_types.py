@@ -90,7 +90,8 @@ class BodyParams:
         Kinetic (Coulomb) friction ``fk_mean·sgn(x') + fk_delta`` [N·m]; fk_mean >= 0.
     fs_mean, fs_delta : float or None
         Static friction band ``[fs_delta - fs_mean, fs_delta + fs_mean]`` [N·m]; ``None``
-        takes the kinetic value. The band must enclose the kinetic band.
+        takes the kinetic value. The band must enclose the kinetic band (with a Stribeck
+        map only 0: the map starts at the static edge, so no jump follows a breakaway).
     locked : bool
         True: the body is clamped and never moves (a locked axis of the test bed).
     lugre : driveid.models.dynamic_friction.LuGreParams or None
@@ -183,7 +184,14 @@ class BodyParams:
         object.__setattr__(self, "fs_delta", fs_delta)
         eps = 1e-12 * max(1.0, abs(self.fk_mean) + abs(self.fk_delta))
         fk_peak = self.fk_mean + self.ripple_amplitude
-        if (fs_delta + fs_mean < self.fk_delta + fk_peak - eps
+        if self.stribeck is not None:
+            # the map is continuous at breakaway (it starts at the static edge), so the
+            # static level may lie below the kinetic one (friction rising with speed); each
+            # edge must still oppose the motion
+            _require(fs_mean >= abs(fs_delta) - eps, "BodyParams.fs_mean must be >= "
+                     "|fs_delta| with a Stribeck map so each static edge opposes the motion",
+                     fs_mean)
+        elif (fs_delta + fs_mean < self.fk_delta + fk_peak - eps
                 or fs_delta - fs_mean > self.fk_delta - fk_peak + eps):
             raise ParameterError(
                 "static friction must hold at least the kinetic friction (with its ripple "
