@@ -216,3 +216,15 @@ def test_toml_body_takes_the_friction_model():
     assert none.bodies[0].stribeck is None
     with pytest.raises(ConfigError, match=r"body\[1\]"):
         parse_drive_config({"body": [{"J": 1.0, "stribeck": "lorentzian"}]})
+
+
+def test_static_level_below_kinetic_is_a_rising_map():
+    """With a Stribeck map fs < fk is allowed: friction rises from fs at v = 0 to fk."""
+    b = BodyParams(J=0.01, c_mean=0.05, fk_mean=0.3, fs_mean=0.1, stribeck="lorentzian",
+                   v_s=0.2)
+    v = _terminal_velocity(b, 0.4)
+    # Eq. 2.3 written out (the model's LorentzianParams requires mu_s >= mu_k); the same
+    # steady-state tolerance as above (F'(v)/J >= 5/s)
+    assert 0.3 + (0.1 - 0.3) / (1 + (v / 0.2) ** 2) + 0.05 * v == pytest.approx(0.4, rel=1e-5)
+    with pytest.raises(ParameterError, match="static friction must hold"):
+        BodyParams(J=0.01, fk_mean=0.3, fs_mean=0.1)  # without a map: a jump, refused
