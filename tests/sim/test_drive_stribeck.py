@@ -228,3 +228,17 @@ def test_static_level_below_kinetic_is_a_rising_map():
     assert 0.3 + (0.1 - 0.3) / (1 + (v / 0.2) ** 2) + 0.05 * v == pytest.approx(0.4, rel=1e-5)
     with pytest.raises(ParameterError, match="static friction must hold"):
         BodyParams(J=0.01, fk_mean=0.3, fs_mean=0.1)  # without a map: a jump, refused
+
+
+def test_auto_method_leaves_the_closed_form_for_a_stribeck_body():
+    """The exact free-decay path knows only Coulomb friction: a map must run on RK4."""
+    b = BodyParams(J=0.01, K=1.0, c_mean=0.01, fk_mean=0.01, fs_mean=0.03,
+                   stribeck="lorentzian", v_s=0.05)
+    plain = BodyParams(J=0.01, K=1.0, c_mean=0.01, fk_mean=0.01, fs_mean=0.03)
+    auto = simulate_drive(DriveParams(bodies=(b,)), duration=1.0, x0=[0.1])
+    rk4 = simulate_drive(DriveParams(bodies=(b,)), duration=1.0, x0=[0.1], method="rk4")
+    coulomb = simulate_drive(DriveParams(bodies=(plain,)), duration=1.0, x0=[0.1])
+    np.testing.assert_array_equal(auto.x, rk4.x)
+    assert np.max(np.abs(auto.x - coulomb.x)) > 1e-4  # the map changes the decay
+    with pytest.raises(ParameterError, match="Stribeck"):
+        simulate_drive(DriveParams(bodies=(b,)), duration=1.0, x0=[0.1], method="exact")

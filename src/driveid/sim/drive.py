@@ -500,7 +500,8 @@ def simulate_drive(
     if method == "exact" and not exact_ok:
         raise ParameterError(
             'method="exact" needs one unlocked body with K > 0, no feedback, no friction '
-            f"ripple and a constant torque; use method=\"rk4\"; got {nb} bodies, "
+            "ripple, Stribeck map or dwell and a constant torque; use method=\"rk4\"; got "
+            f"{nb} bodies, "
             f"feedback={fb is not None}"
         )
     if method != "rk4" and exact_ok:
