@@ -57,6 +57,14 @@ if hasattr(_numba_cpu.CPUTargetOptions, "_nrt"):
 LOCKED = 2
 STUCK = 0
 FREE = 3  # no friction that depends on the velocity's sign: no velocity-zero events
+# Stribeck map of a body (its parameter row, column 11)
+STRIBECK_NONE = 0
+STRIBECK_LORENTZIAN = 1  # Eq. 2.3 (and Hess-Soom 2.2 through 2.4)
+STRIBECK_EXPONENTIAL = 2  # Bo-Pavelescu Eq. 2.5
+# body row columns the kernel writes (friction state): when the body stuck [s], and the
+# rising fraction of the static excess reached at its last breakaway [-]
+COL_STUCK_AT = 17
+COL_RISE = 18
 # link types
 LINK_NONE = 0
 LINK_SHAFT = 1
@@ -159,8 +167,11 @@ def _delayed_at_node(hist, k, s, h):
 def _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work):
     """Compute the applied force on every body (but its own friction) and each link force.
 
-    par rows (11 columns, zero-padded): bodies (J, K, c_mean, c_delta, fk_mean, fk_delta,
-    fs_lo, fs_hi, ripple amplitude, ripple wavenumber 2π/P, ripple phase), links (type, k, c,
+    par rows (19 columns, zero-padded): bodies (J, K, c_mean, c_delta, fk_mean, fk_delta,
+    fs_lo, fs_hi, ripple amplitude, ripple wavenumber 2π/P, ripple phase, Stribeck map
+    code, v_s for v > 0, v_s for v < 0, Stribeck exponent, dwell gamma (0: no rising
+    static friction), dwell kappa, then two state columns the kernel writes: the time the
+    body stuck and the rising fraction at its last breakaway), links (type, k, c,
     gap_plus, gap_minus, allow_tension, restitution, rest_velocity), feedback (on, body, P,
     D, delay, sat).
     inp rows: torque of each body, reference. work: applied forces, then link forces.
@@ -201,7 +212,44 @@ def _friction(y, nb, i, m, par):
     level = par[i, 4]
     if par[i, 8] != 0.0:  # friction ripple periodic in position (drive_types)
         level += par[i, 8] * math.sin(par[i, 9] * y[i] + par[i, 10])
-    return (par[i, 2] + par[i, 3] * m) * y[nb + i] + level * m + par[i, 5]
+    f = (par[i, 2] + par[i, 3] * m) * y[nb + i] + level * m + par[i, 5]
+    if par[i, 11] != STRIBECK_NONE:  # a separate function: Coulomb bodies pay one compare
+        f += _stribeck(y[nb + i], i, m, par)
+    return f
+
+
+@njit(cache=True, **_HOT_LOOP)
+def _stribeck(v, i, m, par):
+    """Stribeck term of slipping body i in direction m: the static excess times its shape.
+
+    ``(static edge - kinetic level) * rise * g(|v| / v_s)`` with ``g = 1/(1 + r²)``
+    (Lorentzian, Eq. 2.3) or ``exp(-r**delta)`` (Bo–Pavelescu, Eq. 2.5), each direction with
+    its own edge, kinetic level and v_s; ``rise`` is 1 without dwell (Eq. 2.9 otherwise).
+    The same formulas as :mod:`driveid.models.friction` (tests compare them): the kernel
+    keeps its own copy because numba's cache checks only this file.
+    """
+    r = abs(v) / (par[i, 12] if m > 0 else par[i, 13])
+    if par[i, 11] == STRIBECK_LORENTZIAN:
+        g = 1.0 / (1.0 + r * r)
+    else:
+        g = math.exp(-(r ** par[i, 14]))
+    edge = par[i, 7] if m > 0 else par[i, 6]
+    return (edge - (par[i, 4] * m + par[i, 5])) * par[i, COL_RISE] * g
+
+
+@njit(cache=True, inline="always")
+def _band(dwell, i, par):
+    """Return body i's static band (lo, hi) [N·m] after ``dwell`` s stuck, and its rise [-].
+
+    Without dwell parameters the band of the row; with them the kinetic band at zero dwell
+    rising to the row's band as ``1 - exp(-dwell**kappa / gamma)`` (Kato/Howe, Eq. 2.6).
+    """
+    if par[i, 15] == 0.0:
+        return par[i, 6], par[i, 7], 1.0
+    rise = 1.0 - math.exp(-(dwell ** par[i, 16]) / par[i, 15]) if dwell > 0.0 else 0.0
+    klo = par[i, 5] - par[i, 4]
+    khi = par[i, 5] + par[i, 4]
+    return klo + (par[i, 6] - klo) * rise, khi + (par[i, 7] - khi) * rise, rise
 
 
 @njit(cache=True, **_HOT_LOOP)
@@ -275,7 +323,7 @@ def _contact_gaps(y, nb, j, par, r):
 
 
 @njit(cache=True, inline="always")
-def _validity(y, nb, modes, par, work, phi):
+def _validity(tau, y, nb, modes, par, work, phi):
     """Event functions: >= 0 while the current mode holds, < 0 once it must switch.
 
     ``work`` must hold the forces at ``y`` (from :func:`_forces`).
@@ -286,7 +334,8 @@ def _validity(y, nb, modes, par, work, phi):
             phi[i] = 1.0
         elif m == STUCK:
             f = work[i]
-            phi[i] = min(f - par[i, 6], par[i, 7] - f)
+            lo, hi, _ = _band(tau - par[i, COL_STUCK_AT], i, par)
+            phi[i] = min(f - lo, hi - f)
         else:
             phi[i] = y[nb + i] * m
     for j in range(nb - 1):
@@ -335,7 +384,7 @@ def _step(tau, y, s, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, k1, k2
             out[nb + i] = 0.0
     if any_stuck:
         _forces(tau + s, out, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
-    _validity(out, nb, modes, par, work, phi)
+    _validity(tau + s, out, nb, modes, par, work, phi)
 
 
 @njit(cache=True, **_HOT_LOOP)
@@ -346,7 +395,7 @@ def _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, 
     """
     _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work)
     if phi.shape[0] > 0:
-        _validity(y, nb, modes, par, work, phi)
+        _validity(tau, y, nb, modes, par, work, phi)
 
 
 @njit(cache=True, **_HOT_LOOP)
@@ -470,13 +519,23 @@ def _impulse(y, nb, j, modes, par, side, pen, counts, energy_jump):
             modes[i] = new
 
 
+@njit(cache=True, inline="always")
+def _beyond_slip_edge(f, i, m, par):
+    """Tell whether force f exceeds body i's slip friction at v = 0+ in direction m."""
+    k = par[i, 5] + m * par[i, 4]
+    edge = k + par[i, COL_RISE] * ((par[i, 7] if m > 0 else par[i, 6]) - k)
+    return (f - edge) * m > 0.0
+
+
 @njit(cache=True, **_HOT_LOOP)
-def _resolve(y, nb, modes, par, work, counts, energy_jump):
+def _resolve(tau, y, nb, modes, par, work, counts, energy_jump):
     """Switch every mode whose event function is negative (or a body at v = 0).
 
-    ``work`` holds the forces at ``y``. counts = [mode switches, impacts]; energy_jump[0]
-    accumulates the contact energy lost when a no-tension contact opens with residual
-    penetration, energy_jump[1] the loss of restitution impacts.
+    ``work`` holds the forces at ``y`` (time ``tau``). A body that sticks records the time
+    and one that breaks away the rising fraction of its static band (dwell, Eq. 2.6).
+    counts = [mode switches, impacts]; energy_jump[0] accumulates the contact energy lost
+    when a no-tension contact opens with residual penetration,
+    energy_jump[1] the loss of restitution impacts.
     """
     for i in range(nb):
         m = modes[i]
@@ -484,20 +543,26 @@ def _resolve(y, nb, modes, par, work, counts, energy_jump):
             continue
         f = work[i]
         if m == STUCK:
-            if f > par[i, 7]:
-                modes[i] = 1
-                counts[0] += 1
-            elif f < par[i, 6]:
-                modes[i] = -1
+            lo, hi, rise = _band(tau - par[i, COL_STUCK_AT], i, par)
+            if f > hi or f < lo:
+                modes[i] = 1 if f > hi else -1
+                par[i, COL_RISE] = rise
                 counts[0] += 1
         elif y[nb + i] * m <= 0.0:
             y[nb + i] = 0.0
-            if par[i, 6] <= f <= par[i, 7]:
+            lo, hi, rise = _band(0.0, i, par)  # no dwell yet
+            if lo <= f <= hi:
                 new = STUCK
-            elif f > 0.5 * (par[i, 6] + par[i, 7]):
+                par[i, COL_STUCK_AT] = tau
+            elif f > 0.5 * (lo + hi):
                 new = 1
             else:
                 new = -1
+            if new != STUCK and (new != m or not _beyond_slip_edge(f, i, new, par)):
+                # a re-slip without dwell starts from the zero-dwell excess (Eq. 2.9); a
+                # body that has just broken away (v = 0, force past its risen edge) keeps
+                # the excess it broke away with
+                par[i, COL_RISE] = rise
             if new != m:
                 counts[0] += 1
             modes[i] = new
@@ -607,15 +672,18 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     status = OK
     abort_index = -1
     abort_value = 0.0
-    # initial modes: bodies at rest stick or break away, contacts already closed
+    # initial modes: bodies at rest stick or break away, contacts already closed; friction
+    # state: a body at rest sticks from t = 0, one moving has its full static excess
     if not resume:
         for i in range(nb):
+            par[i, COL_STUCK_AT] = 0.0
+            par[i, COL_RISE] = 1.0
             if modes[i] != LOCKED and modes[i] != FREE:
                 modes[i] = -1 if y[nb + i] < 0 else 1
     for _ in range(3):
         _forces_and_validity(0.0, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work,
                              no_phi)
-        _resolve(y, nb, modes, par, work, counts, jump)
+        _resolve(0.0, y, nb, modes, par, work, counts, jump)
     if not resume:
         counts[0] = 0
         counts[1] = 0
@@ -839,7 +907,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                                      work, no_phi)
                 if _r == 0 and pending_node >= 0:  # the acceleration before the switch
                     hist[3, pending_node] = _acceleration(y, nb, fbb, modes, par, work)
-                _resolve(y, nb, modes, par, work, counts, jump)
+                _resolve(tau, y, nb, modes, par, work, counts, jump)
             n_ev += 1
             if pending_node >= 0:
                 hist[0, pending_node + 1] = y[nb + fbb]  # velocity after (impacts change it)
@@ -856,6 +924,9 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
         if status != OK or step == n_steps:
             break
         step += m
+    # a resumed call starts its clock at 0 again: the stick times move with it
+    for i in range(nb):
+        par[i, COL_STUCK_AT] -= step * h
     return status, abort_index, abort_value
 
 

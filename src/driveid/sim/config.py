@@ -62,7 +62,8 @@ __all__ = ["RunOptions", "load_drive_config", "parse_drive_config", "read_toml",
 
 _TOP_KEYS = ("preset", "body", "link", "feedback", "run")
 _BODY_KEYS = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "fs_mean", "fs_delta",
-              "locked", "ripple_amplitude", "ripple_period", "ripple_phase")
+              "locked", "ripple_amplitude", "ripple_period", "ripple_phase", "stribeck", "v_s",
+              "v_s_delta", "stribeck_exponent", "dwell_gamma", "dwell_kappa")
 _LINK_KEYS = {"shaft": ("type", "k", "c"),
               "backlash": ("type", "gap_plus", "gap_minus", "k", "c", "allow_tension",
                            "contact", "restitution", "rest_velocity"),
@@ -144,6 +145,8 @@ def _values(table: dict, where: str) -> dict:
             out[key] = value
         elif key in ("type", "contact"):
             out[key] = value
+        elif key == "stribeck":  # "none" (TOML has no null) or a map name
+            out[key] = None if value == "none" else value
         elif key == "body":
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise _fail(f"{where}.{key}", f"must be a body number >= 1 (counted from 1); "

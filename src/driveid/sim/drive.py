@@ -95,14 +95,21 @@ __all__ = [
 ]
 
 
-PAR_WIDTH = 11  # columns of the kernel's parameter rows (see _kernels._forces)
+PAR_WIDTH = 19  # columns of the kernel's parameter rows (see _kernels._forces)
+_STRIBECK_CODES = {None: _k.STRIBECK_NONE, "lorentzian": _k.STRIBECK_LORENTZIAN,
+                   "bo_pavelescu": _k.STRIBECK_EXPONENTIAL}
 
 
 def _body_row(b: BodyParams) -> list[float]:
     wavenumber = 2.0 * math.pi / b.ripple_period if b.has_ripple else 0.0
+    v_s = 1.0 if b.v_s is None else b.v_s
+    # the last two columns are the kernel's friction state (when stuck, rise at breakaway)
     return [b.J, b.K, b.c_mean, b.c_delta, b.fk_mean, b.fk_delta,
             b.fs_delta - b.fs_mean, b.fs_delta + b.fs_mean,
-            b.ripple_amplitude, wavenumber, b.ripple_phase]
+            b.ripple_amplitude, wavenumber, b.ripple_phase,
+            _STRIBECK_CODES[b.stribeck], v_s + b.v_s_delta, v_s - b.v_s_delta,
+            b.stribeck_exponent, 0.0 if b.dwell_gamma is None else b.dwell_gamma,
+            b.dwell_kappa, 0.0, 1.0]
 
 
 def _link_row(ln) -> list[float]:
@@ -116,12 +123,12 @@ def _link_row(ln) -> list[float]:
     else:
         row = [_k.LINK_BACKLASH, ln.k, ln.c, ln.gap_plus, ln.gap_minus,
                float(ln.allow_tension), 0.0, 0.0]
-    return row + [0.0] * (PAR_WIDTH - 8)
+    return row + [0.0] * (PAR_WIDTH - len(row))
 
 
 def _feedback_row(fb: PDFeedback | None) -> list[float]:
     row = [0.0] * 6 if fb is None else [1.0, fb.body, fb.P, fb.D, fb.delay, fb.saturation]
-    return row + [0.0] * (PAR_WIDTH - 6)
+    return row + [0.0] * (PAR_WIDTH - len(row))
 
 
 
@@ -153,6 +160,7 @@ def _stiffest(params: DriveParams) -> tuple[float, str]:
             k += abs(fb.P)
             c += abs(fb.D)
             parts.append((abs(fb.P), f"feedback (P = {fb.P:.3g} on J = {b.J:.3g})"))
+        c += b.stribeck_slope  # the falling Stribeck branch is a negative damping
         body_rate = max(math.sqrt(k / b.J), c / b.J)
         if body_rate > rate:
             rate = body_rate
@@ -250,7 +258,7 @@ def estimate_drive_cost(params: DriveParams, *, duration: float, fs: float = 100
     n_sub = max(1, math.ceil((1.0 / fs) / step - 1e-9))
     exact = (method != "rk4" and nb == 1 and not params.bodies[0].locked
              and params.bodies[0].K > 0 and params.feedback is None
-             and not params.bodies[0].has_ripple and not params.smooth)
+             and params.bodies[0].is_plain_coulomb and not params.smooth)
     n_steps = 0 if exact else (n_out - 1) * n_sub
     # x, v, command, six energy rows, time, an input grid and the CSV writer's two copies
     memory = 8.0 * n_out * (8 * nb + 12)
@@ -488,12 +496,13 @@ def simulate_drive(
                    max_events_per_step, rtol)
     nb, torque, fb = params.n_bodies, run["torque"], params.feedback
     exact_ok = (nb == 1 and not run["locked"][0] and params.bodies[0].K > 0 and fb is None
-                and not params.bodies[0].has_ripple
+                and params.bodies[0].is_plain_coulomb
                 and np.all(torque == torque[:, :1]))
     if method == "exact" and not exact_ok:
         raise ParameterError(
             'method="exact" needs one unlocked body with K > 0, no feedback, no friction '
-            f"ripple and a constant torque; use method=\"rk4\"; got {nb} bodies, "
+            "ripple, Stribeck map or dwell and a constant torque; use method=\"rk4\"; got "
+            f"{nb} bodies, "
             f"feedback={fb is not None}"
         )
     if method != "rk4" and exact_ok:

@@ -17,6 +17,20 @@ to the kinetic (Coulomb) level and so always opposes the motion. Sticking uses t
 band ``[fs_delta - fs_mean, fs_delta + fs_mean]`` (2.137, 2.138), which must enclose the
 kinetic band at every position.
 
+With a Stribeck map (``stribeck``, thesis Eqs. 2.3, 2.5; 2.2 through 2.4) the friction of a
+body moving in direction ``s`` falls from the static edge ``fs_s = fs_mean + s fs_delta`` at
+v = 0 to the kinetic level ``fk_s = fk_mean + s fk_delta``:
+
+.. math:: F_{fric} = s\,[f_{k,s} + \rho\,(f_{s,s} - f_{k,s})\, g(|x'| / v_{S,s})]
+   + (c_{mean} + c_{delta} s) x', \qquad v_{S,s} = v_s + s\, v_{s,delta}
+
+with ``g(r) = 1/(1 + r²)`` (Lorentzian) or ``exp(-r**delta)`` (Bo–Pavelescu), so each
+direction is a one-sided map of :mod:`driveid.models.friction` (the ``±`` branches of
+``asymmetric_friction``). ``ρ = 1`` unless the static friction rises with dwell
+(``dwell_gamma``, Kato/Howe Eq. 2.6): then the band a stuck body must overcome is
+``fk + (fs - fk)·ρ(t)``, ``ρ(t) = 1 - exp(-t**kappa/gamma)`` of the time ``t`` it has been
+stuck, and the slip phase keeps the ``ρ`` reached at breakaway (Eq. 2.9).
+
 References
 ----------
 .. [1] J. A. de Marchi, "Modeling of dynamic friction, impact backlash and elastic
@@ -76,7 +90,8 @@ class BodyParams:
         Kinetic (Coulomb) friction ``fk_mean·sgn(x') + fk_delta`` [N·m]; fk_mean >= 0.
     fs_mean, fs_delta : float or None
         Static friction band ``[fs_delta - fs_mean, fs_delta + fs_mean]`` [N·m]; ``None``
-        takes the kinetic value. The band must enclose the kinetic band.
+        takes the kinetic value. The band must enclose the kinetic band (with a Stribeck
+        map only 0: the map starts at the static edge, so no jump follows a breakaway).
     locked : bool
         True: the body is clamped and never moves (a locked axis of the test bed).
     lugre : driveid.models.dynamic_friction.LuGreParams or None
@@ -92,6 +107,27 @@ class BodyParams:
         Its period ``P`` in position [rad or m], > 0; required when ``ripple_amplitude > 0``.
     ripple_phase : float
         Its phase ``φ`` at ``x = 0`` [rad] (default 0).
+    stribeck : {None, "lorentzian", "bo_pavelescu"}
+        Stribeck map of the slip phase (default None: the static level drops to the kinetic
+        one at once). ``"lorentzian"`` is Eq. 2.3, ``"bo_pavelescu"`` Eq. 2.5 (Hess–Soom 2.2
+        through :meth:`from_hess_soom`): in direction ``s`` friction falls from the static
+        edge ``fs_s`` at v = 0 towards the kinetic level ``fk_s`` as ``g(|v|/v_s,s)``
+        (module docstring); not with a ripple or LuGre.
+    v_s : float or None
+        Stribeck velocity [rad/s or m/s], > 0; required with ``stribeck``.
+    v_s_delta : float
+        Signed asymmetry of the Stribeck velocity [rad/s or m/s]: ``v_s ± v_s_delta`` for
+        v > 0 and v < 0 (default 0); ``|v_s_delta| < v_s``.
+    stribeck_exponent : float
+        Exponent ``delta`` of the Bo–Pavelescu map [-], > 0 (default 2: Gaussian).
+    dwell_gamma : float or None
+        Rising static friction with dwell (Kato/Howe, Eq. 2.6): the static band rises from the
+        kinetic band at the moment of sticking to ``fs_mean, fs_delta`` as ``1 - exp(-t**kappa
+        / gamma)`` of the time stuck ``t`` [s**kappa], > 0 (default None: no rise). A body at
+        rest at the start has stuck at t = 0. With ``stribeck`` the slip phase's excess is the
+        risen one (Eq. 2.9).
+    dwell_kappa : float
+        Exponent ``kappa`` of Eq. 2.6 [-], > 0 (default 1).
     """
 
     J: float
@@ -107,6 +143,12 @@ class BodyParams:
     ripple_amplitude: float = 0.0
     ripple_period: float | None = None
     ripple_phase: float = 0.0
+    stribeck: str | None = None
+    v_s: float | None = None
+    v_s_delta: float = 0.0
+    stribeck_exponent: float = 2.0
+    dwell_gamma: float | None = None
+    dwell_kappa: float = 1.0
 
     def __post_init__(self) -> None:
         for name in ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "ripple_amplitude",
@@ -131,6 +173,7 @@ class BodyParams:
         _require(self.K >= 0, "BodyParams.K must be >= 0 [N·m/rad]", self.K)
         _require(self.fk_mean >= 0, "BodyParams.fk_mean must be >= 0 [N·m]", self.fk_mean)
         self._check_ripple()
+        self._check_stribeck_and_dwell()
         # the static band must hold the kinetic level at every position: with a ripple its
         # default is the kinetic peak
         fs_mean = self.fk_mean + self.ripple_amplitude if self.fs_mean is None else _finite(
@@ -141,7 +184,14 @@ class BodyParams:
         object.__setattr__(self, "fs_delta", fs_delta)
         eps = 1e-12 * max(1.0, abs(self.fk_mean) + abs(self.fk_delta))
         fk_peak = self.fk_mean + self.ripple_amplitude
-        if (fs_delta + fs_mean < self.fk_delta + fk_peak - eps
+        if self.stribeck is not None:
+            # the map is continuous at breakaway (it starts at the static edge), so the
+            # static level may lie below the kinetic one (friction rising with speed); each
+            # edge must still oppose the motion
+            _require(fs_mean >= abs(fs_delta) - eps, "BodyParams.fs_mean must be >= "
+                     "|fs_delta| with a Stribeck map so each static edge opposes the motion",
+                     fs_mean)
+        elif (fs_delta + fs_mean < self.fk_delta + fk_peak - eps
                 or fs_delta - fs_mean > self.fk_delta - fk_peak + eps):
             raise ParameterError(
                 "static friction must hold at least the kinetic friction (with its ripple "
@@ -161,6 +211,96 @@ class BodyParams:
                      self.ripple_period)
         _require(a == 0.0 or self.ripple_period is not None, "BodyParams.ripple_period "
                  "[rad or m] is needed with ripple_amplitude > 0; pass the period", None)
+
+    def _check_stribeck_and_dwell(self) -> None:
+        _require(self.stribeck in (None, "lorentzian", "bo_pavelescu"),
+                 'BodyParams.stribeck must be None, "lorentzian" or "bo_pavelescu"',
+                 self.stribeck)
+        for name in ("v_s_delta", "stribeck_exponent", "dwell_kappa"):
+            _finite("BodyParams", name, getattr(self, name))
+        if self.stribeck is not None:
+            _require(self.v_s is not None and _finite("BodyParams", "v_s", self.v_s) > 0,
+                     "BodyParams.v_s [rad/s or m/s] must be positive with a Stribeck map; "
+                     "pass the Stribeck velocity", self.v_s)
+            _require(abs(self.v_s_delta) < self.v_s, "BodyParams.v_s_delta must lie inside "
+                     "(-v_s, v_s) so both branches have a positive Stribeck velocity",
+                     self.v_s_delta)
+        _require(self.stribeck_exponent > 0, "BodyParams.stribeck_exponent must be > 0",
+                 self.stribeck_exponent)
+        if self.dwell_gamma is not None:
+            _require(_finite("BodyParams", "dwell_gamma", self.dwell_gamma) > 0,
+                     "BodyParams.dwell_gamma must be positive [s**kappa] or None",
+                     self.dwell_gamma)
+        _require(self.dwell_kappa > 0, "BodyParams.dwell_kappa must be > 0",
+                 self.dwell_kappa)
+        extended = self.stribeck is not None or self.dwell_gamma is not None
+        _require(not (extended and (self.has_ripple or self.lugre is not None)),
+                 "BodyParams.stribeck and dwell_gamma take the Coulomb + viscous map: set "
+                 "ripple_amplitude = 0 and lugre = None with them", self.stribeck)
+
+    @classmethod
+    def from_hess_soom(cls, *, J: float, params, **others) -> BodyParams:
+        """Build a body whose slip friction is Hess and Soom's map, Eqs. (2.1)-(2.2), via (2.4).
+
+        Parameters
+        ----------
+        J : float
+            Mass [kg] (Hess and Soom's map is translational).
+        params : driveid.models.friction.HessSoomParams
+            Static friction ``mu_s`` [N], constants ``c1`` [-], ``c2`` [N], viscosity, load,
+            modulus and contact length.
+        **others
+            Further :class:`BodyParams` fields (``K``, ``locked`` ...), not friction.
+
+        Returns
+        -------
+        BodyParams
+            ``stribeck="lorentzian"`` with ``fk_mean = 0``, ``fs_mean = mu_s``,
+            ``v_s = sqrt(W E) / (eta sqrt(c1))`` and ``c_mean = c2 eta l / W`` (the inverse of
+            Eq. 2.4); ``c1 = 0`` gives Coulomb friction ``mu_s`` without a Stribeck drop.
+
+        Examples
+        --------
+        >>> from driveid.models.friction import HessSoomParams
+        >>> hs = HessSoomParams(mu_s=4.0, c1=1.0, c2=0.5, eta=1.0, W=1.0, E=1.0, l=1.0)
+        >>> b = BodyParams.from_hess_soom(J=1.0, params=hs)
+        >>> (b.v_s, b.c_mean, b.fs_mean)
+        (1.0, 0.5, 4.0)
+        """
+        p = params
+        c_mean = p.c2 * p.eta * p.l / p.W
+        if p.c1 == 0.0:
+            return cls(J=J, fk_mean=p.mu_s, c_mean=c_mean, **others)
+        v_s = math.sqrt(p.W * p.E) / (p.eta * math.sqrt(p.c1))
+        return cls(J=J, fk_mean=0.0, fs_mean=p.mu_s, c_mean=c_mean, stribeck="lorentzian",
+                   v_s=v_s, **others)
+
+    @property
+    def is_plain_coulomb(self) -> bool:
+        """True if friction is Coulomb + viscous with a static band alone (the exact path).
+
+        No ripple, Stribeck map, rising static friction or LuGre.
+        """
+        return (not self.has_ripple and self.stribeck is None and self.dwell_gamma is None
+                and self.lugre is None)
+
+    @property
+    def stribeck_slope(self) -> float:
+        """Steepest fall of the Stribeck term with speed, ``max |dF/dv|`` [N·m·s/rad].
+
+        Sets the body's negative damping for the RK4 step (0 without a Stribeck map).
+        """
+        if self.stribeck is None:
+            return 0.0
+        excess = max(self.fs_mean + abs(self.fs_delta) - self.fk_mean + abs(self.fk_delta),
+                     0.0)
+        if self.stribeck == "lorentzian":
+            shape = 3.0 * math.sqrt(3.0) / 8.0  # max of 2r/(1+r²)² at r = 1/sqrt(3)
+        else:  # max of d exp(-r^d)/dr, at r^d = (d-1)/d (d < 1: steep only near v = 0)
+            d = max(self.stribeck_exponent, 1.0)
+            q = (d - 1.0) / d
+            shape = d * q ** q * math.exp(-q) if q > 0 else 1.0
+        return excess * shape / (self.v_s - abs(self.v_s_delta))
 
     @property
     def has_ripple(self) -> bool:

@@ -27,6 +27,9 @@ __all__ = ["DriveRecord", "parameter_names", "parameter_unit", "lower_bound"]
 
 _CHANNEL = re.compile(r"^([xv])([1-9][0-9]*)$")
 _BODY_FIELDS = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "fs_mean", "fs_delta")
+# only on a body with a Stribeck map / rising static friction (BodyParams.stribeck, dwell_gamma)
+_STRIBECK_FIELDS = ("v_s", "v_s_delta", "stribeck_exponent")
+_DWELL_FIELDS = ("dwell_gamma", "dwell_kappa")
 _SHAFT_FIELDS = ("k", "c")
 _BACKLASH_FIELDS = ("gap_plus", "gap_minus", "k", "c")
 _FEEDBACK_FIELDS = ("P", "D", "delay")
@@ -158,7 +161,7 @@ def parameter_names(params: DriveParams, *, states: bool = True) -> list[str]:
     for i, b in enumerate(params.bodies):
         if b.locked:
             continue
-        names += [f"body{i + 1}.{f}" for f in _BODY_FIELDS]
+        names += [f"body{i + 1}.{f}" for f in _body_fields(b)]
     for j, ln in enumerate(params.links):
         if isinstance(ln, ShaftLink):
             names += [f"link{j + 1}.{f}" for f in _SHAFT_FIELDS]
@@ -170,6 +173,17 @@ def parameter_names(params: DriveParams, *, states: bool = True) -> list[str]:
         names += [f"body{i + 1}.{f}" for i, b in enumerate(params.bodies) if not b.locked
                   for f in _STATE_FIELDS]
     return names
+
+
+def _body_fields(b: BodyParams) -> tuple[str, ...]:
+    """Scalar parameters of a body: friction levels, then its Stribeck and dwell ones."""
+    fields = _BODY_FIELDS
+    if b.stribeck is not None:
+        # the exponent of the Lorentzian map is not used: not a parameter of it
+        fields += _STRIBECK_FIELDS if b.stribeck == "bo_pavelescu" else _STRIBECK_FIELDS[:2]
+    if b.dwell_gamma is not None:
+        fields += _DWELL_FIELDS
+    return fields
 
 
 def parameter_unit(name: str, units: str = "rad") -> str:
@@ -196,6 +210,8 @@ def parameter_unit(name: str, units: str = "rad") -> str:
         "c": "N·m·s/rad" if rot else "N·s/m", "D": "N·m·s/rad" if rot else "N·s/m",
         "gap_plus": units, "gap_minus": units, "x0": units,
         "v0": "rad/s" if rot else "m/s", "delay": "s",
+        "v_s": "rad/s" if rot else "m/s", "v_s_delta": "rad/s" if rot else "m/s",
+        "stribeck_exponent": "-", "dwell_kappa": "-", "dwell_gamma": "s**kappa",
     }
     return table.get(field_name, "N·m" if rot else "N")
 
@@ -211,11 +227,12 @@ def lower_bound(name: str) -> float:
     Returns
     -------
     float
-        0 for J, K, viscous and kinetic/static friction means, link k and c, gaps and the
-        delay; ``-inf`` for signed asymmetries, gains and initial states.
+        0 for J, K, viscous and kinetic/static friction means, link k and c, gaps, the
+        delay and the Stribeck and dwell constants; ``-inf`` for signed asymmetries, gains
+        and initial states.
     """
     field_name = name.rsplit(".", 1)[1]
-    if field_name in ("c_delta", "fk_delta", "fs_delta", "x0", "v0", "P", "D"):
+    if field_name in ("c_delta", "fk_delta", "fs_delta", "v_s_delta", "x0", "v0", "P", "D"):
         return -math.inf
     return 0.0
 
@@ -247,7 +264,7 @@ def _split(name: str, params: DriveParams) -> tuple[str, int, str]:
         raise ParameterError(f"{name}: the drive has {count} {kind}(s); got {kind} "
                              f"{index + 1}")
     if kind == "body":
-        allowed = _BODY_FIELDS + _STATE_FIELDS
+        allowed = _body_fields(params.bodies[index]) + _STATE_FIELDS
     else:
         ln = params.links[index]
         allowed = (_SHAFT_FIELDS if isinstance(ln, ShaftLink) else
@@ -451,6 +468,12 @@ def drive_to_toml(params: DriveParams, *, duration: float | None = None,
             out.append(line("fs_delta", b.fs_delta, f"body{i + 1}.fs_delta"))
         if b.locked:
             out.append("locked = true")
+        if b.stribeck is not None:
+            out.append(f'stribeck = "{b.stribeck}"')
+            out += [line(f, getattr(b, f), f"body{i + 1}.{f}")
+                    for f in _body_fields(b) if f in _STRIBECK_FIELDS]
+        if b.dwell_gamma is not None:
+            out += [line(f, getattr(b, f), f"body{i + 1}.{f}") for f in _DWELL_FIELDS]
         if b.has_ripple:
             out += [f"ripple_amplitude = {_fmt(b.ripple_amplitude)}",
                     f"ripple_period = {_fmt(b.ripple_period)}",

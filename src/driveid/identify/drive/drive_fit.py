@@ -169,6 +169,7 @@ def _scale(name: str, value: float, base: DriveParams) -> float:
         return abs(value)
     owner, field_name = name.rsplit(".", 1)
     partner = {"c_delta": "c_mean", "fk_delta": "fk_mean", "fs_delta": "fs_mean",
+               "v_s_delta": "v_s",
                "gap_minus": "gap_plus", "gap_plus": "gap_minus"}.get(field_name)
     if partner is not None:
         try:
@@ -523,6 +524,14 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
             b = start.bodies[int(n[4:n.index(".")]) - 1]
             if f"{n[:-8]}.fs_mean" not in names and not _follows(b):
                 upper[j] = b.fs_mean / scale_all[j]
+    # a Stribeck velocity far below its start is below what the record resolves, and the
+    # slope of its map would shrink the RK4 step without bound: keep it above 1 % of it
+    # (and above a fixed |v_s_delta|, so both branches keep a positive one)
+    for j, n in enumerate(names):
+        if n.endswith(".v_s"):
+            b = start.bodies[int(n[4:n.index(".")]) - 1]
+            held = 0.0 if f"{n}_delta" in names else 1.01 * abs(b.v_s_delta) / scale_all[j]
+            lower[j] = max(lower[j], 0.01 * z0[j], held)
     z0 = np.clip(z0, lower + 1e-9 * np.abs(z0 + 1e-3), upper)
 
     sigma = [np.array([_channel_noise(rec.channels[c]) for c in p.channels])
