@@ -67,6 +67,13 @@ CASES = {
     "strides (rtol)": (preset("testbed-a"), dict(duration=2.0, x0=[1.0], rtol=1e-8)),
     "sampled controller": (_w3(), dict(duration=0.5, controller=lambda t, x, v: 0.3 - x[0],
                                        control_rate=200.0)),
+    # the per-body friction maps and the dwell clock (issue 25 item 4) interpreted too
+    "Stribeck map with dwell, stick-slip": (
+        DriveParams(bodies=(BodyParams(J=0.01, K=1.0, c_mean=0.05, c_delta=0.01, fk_mean=0.1,
+                                       fk_delta=0.02, fs_mean=0.3, fs_delta=0.05,
+                                       stribeck="lorentzian", v_s=0.2, v_s_delta=0.05,
+                                       dwell_gamma=0.5, dwell_kappa=0.8),)),
+        dict(duration=2.0, x0=[0.5])),
 }
 
 
