@@ -1,0 +1,188 @@
+"""The rows of the IDIM regression: filtered, differentiated, decimated (EMPS recipe).
+
+:func:`idim_regressor` builds the observation matrix and the force of the inverse model of
+:mod:`driveid.identify.friction.idim` from one record (re-exported there).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from scipy import signal as sps
+
+from driveid.errors import ParameterError, RecordError
+from driveid.identify.core._expressions import evaluate_expression
+from driveid.io.record import Record
+from driveid.signal.differentiate import differentiate, zero_phase_lowpass
+from driveid.signal.steady import standstill_mask
+
+__all__ = ["MODELS", "idim_regressor"]
+
+#: Friction models understood by :func:`driveid.identify.friction.idim.estimate_idim`.
+MODELS = ("symmetric", "asymmetric")
+
+
+def _check_settings(model: str, cutoff_hz: float, decimate: int, edge: int) -> None:
+    if model not in MODELS:
+        raise ParameterError(f"model must be one of {MODELS}; got {model!r}")
+    if int(decimate) != decimate or decimate < 1:
+        raise ParameterError(f"decimate must be an integer >= 1 [-]; got {decimate}")
+    if int(edge) != edge or edge < 0:
+        raise ParameterError(f"edge must be an integer >= 0 [samples]; got {edge}")
+    if not (math.isfinite(cutoff_hz) and cutoff_hz > 0):
+        raise ParameterError(f"cutoff_hz must be a positive frequency [Hz]; got {cutoff_hz}")
+
+
+def idim_regressor(
+    record: Record,
+    *,
+    model: str = "symmetric",
+    cutoff_hz: float = 100.0,
+    decimate: int = 10,
+    edge: int = 50,
+    offset: float | None = None,
+    load: str | np.ndarray | None = None,
+    regressors: Sequence[str] = (),
+    min_speed: float | None = None,
+    parallel: bool = False,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Build the decimated observation matrix and force of the IDIM model.
+
+    Parameters
+    ----------
+    record : Record
+        Position ``x`` [m or rad] and force ``u`` [N or N·m].
+    model : {"symmetric", "asymmetric"}
+        Friction model (see module docstring).
+    cutoff_hz : float
+        Zero-phase 4th-order Butterworth cut-off on the position [Hz]; EMPS uses 100.
+    decimate : int
+        Decimation factor of observation matrix and force [-]; 1 disables it. Uses
+        :func:`scipy.signal.decimate` (order-8 Chebyshev I, zero phase) like MATLAB.
+    edge : int
+        Samples dropped at both ends after differentiation [-]; at least
+        ``3·fs/cutoff_hz`` are dropped (the filter's start-up transient).
+    offset : float or None
+        Known force offset [N or N·m], subtracted from the force (its column is then
+        dropped); ``None`` estimates it (symmetric model).
+    load : str or array_like, shape (n,), optional
+        Known load force [N or N·m] subtracted from ``u``: an array, or an expression of
+        ``t x v a u`` (see :mod:`driveid.identify.core._expressions`), e.g. ``"1.47*sin(x)"``.
+    regressors : sequence of str
+        Extra columns with unknown coefficients, expressions of ``t x v a u`` (filtered
+        position, velocity, acceleration), e.g. ``("sin(x)",)`` for gravity ``m g l sin q``.
+    min_speed : float or None
+        Decimated rows slower than this are dropped [m/s or rad/s]; ``None`` or 0 keeps
+        them. Rows at standstill are always dropped: there the force is held by static
+        friction, which the model does not describe, and the sign of a velocity that is
+        zero up to filter ripple is arbitrary. Standstill: the raw position moves by at
+        most two encoder counts (its smallest step), or by at most 8 noise sd (from its
+        second differences) on a noisy sensor, within ``fs/cutoff_hz`` samples, widened by
+        twice that on each side (the zero-phase filter smears the stop).
+    parallel : bool
+        Parallel filtering: when ``cutoff_hz`` lies below the decimation's band
+        (``fs / (2 decimate)``), pass the force and the friction and extra columns through the
+        same zero-phase filter as the position, so that ``J x''`` of the filtered position
+        meets a force of the same band (without it a low cut-off biases J upwards).
+
+    Returns
+    -------
+    tuple of ndarray
+        ``(W, y, t, v)``: W shape (m, p) [mixed units], force y shape (m,) [N or N·m],
+        times t shape (m,) [s], decimated velocity v shape (m,) [m/s or rad/s].
+
+    Raises
+    ------
+    RecordError
+        If the record has no force column or is too short after dropping the edges.
+    ParameterError
+        If a setting or expression is invalid.
+    """
+    _check_settings(model, cutoff_hz, decimate, edge)
+    if record.u is None:
+        raise RecordError(
+            "IDIM needs the applied force or torque u; read the record with a force column "
+            "(CLI: --force NAME); got a record with columns "
+            f"{list(record.columns)}"
+        )
+    # the Butterworth filter, the differences and the decimation assume one sampling interval;
+    # an uneven clock (a robot log with 1-13 ms steps) is put on the median grid first, warned
+    record = record.resampled_uniform(
+        purpose="IDIM's zero-phase filter, differentiation and decimation")
+    fs = record.fs
+    if not cutoff_hz < fs / 2:
+        raise ParameterError(
+            f"cutoff_hz must be below fs/2 = {fs / 2:g} Hz; got {cutoff_hz}"
+        )
+    xf, v, a = differentiate(record.x, fs, cutoff_hz=cutoff_hz)
+    u = np.asarray(record.u, float)
+    values = {"t": record.t, "x": xf, "v": v, "a": a, "u": u}
+    y = u.copy()
+    if load is not None:
+        y = y - (evaluate_expression(load, values) if isinstance(load, str)
+                 else _per_sample(load, record.n, "load"))
+    if offset is not None:
+        y -= float(offset)  # y is ours (a copy of u): in place
+    extra = [evaluate_expression(r, values) for r in regressors]
+    del values, xf  # only expressions use the filtered position
+    # parallel filtering: a position filter narrower than the decimation's leaves the force
+    # wider band than J·x'' of the filtered position, which biases J upwards; the force and
+    # the columns not built from derivatives then pass the same zero-phase filter
+    parallel = bool(parallel) and cutoff_hz < fs / (2 * int(decimate))
+    if parallel:
+        y = zero_phase_lowpass(y, fs, cutoff_hz)
+        extra = [zero_phase_lowpass(c, fs, cutoff_hz) for c in extra]
+    # the zero-phase filter's start-up transient lasts a few 1/cutoff_hz
+    cut = max(int(edge), math.ceil(3.0 * fs / cutoff_hz))
+    sl = slice(cut, record.n - cut)
+    v, a, y, t = v[sl], a[sl], y[sl], record.t[sl]
+    extra = [c[sl] for c in extra]
+    min_len = 27 * int(decimate) if decimate > 1 else 8  # decimate's filtfilt padding
+    if v.size < min_len:
+        raise RecordError(
+            f"record too short for IDIM after dropping {cut} edge samples and decimating "
+            f"by {decimate}; need >= {min_len} samples; got {v.size}"
+        )
+    # one column at a time: decimating each equals decimating the stacked n x p matrix,
+    # which held p full columns plus the filter's padded copies (issue 12)
+    def same(column: np.ndarray) -> np.ndarray:
+        # sgn(v) and the one-sided velocities are not linear in x: filtered like the force
+        return zero_phase_lowpass(column, fs, cutoff_hz) if parallel else column
+
+    if model == "symmetric":
+        cols = [lambda: a, lambda: v, lambda: same(np.sign(v))] + (
+            [lambda: np.ones_like(v)] if offset is None else [])
+    else:
+        cols = [lambda: a, lambda: same(np.where(v > 0, v, 0.0)),
+                lambda: same((v > 0).astype(float)), lambda: same(np.where(v < 0, v, 0.0)),
+                lambda: same(-(v < 0).astype(float))]
+    cols += [lambda c=c: c for c in extra]
+    if decimate > 1:
+        W = np.column_stack([sps.decimate(make(), int(decimate)) for make in cols])
+        y = sps.decimate(y, int(decimate))
+        v_dec = v[:: int(decimate)]
+        t = t[:: int(decimate)]
+    else:
+        W = np.column_stack([make() for make in cols])
+        v_dec = v
+    min_speed = 0.0 if min_speed is None else float(min_speed)
+    if not (math.isfinite(min_speed) and min_speed >= 0):
+        raise ParameterError(f"min_speed must be >= 0 [m/s or rad/s]; got {min_speed}")
+    still = standstill_mask(np.asarray(record.x, float), max(1, round(fs / cutoff_hz)))[sl]
+    if decimate > 1:
+        still = still[:: int(decimate)]
+    moving = ~still & (np.abs(v_dec) > min_speed)
+    return W[moving], y[moving], t[moving], v_dec[moving]
+
+
+def _per_sample(value: Any, n: int, name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=float).ravel()
+    if arr.size == 1:
+        return np.full(n, float(arr[0]))
+    if arr.size != n or not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{name} must hold one finite value per sample ({n}) [N or "
+                             f"N·m]; got {arr.size} values")
+    return arr
