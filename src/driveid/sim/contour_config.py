@@ -54,7 +54,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from driveid.errors import ConfigError, ParameterError
-from driveid.sim.config import parse_drive_config, read_toml
+
+# the drive config's key checks and messages, so both files read alike
+from driveid.sim.config import _check_keys, _fail, parse_drive_config, read_toml
 from driveid.sim.drive_types import DriveParams
 
 __all__ = ["AxisConfig", "CirclePath", "ContourConfig", "ControllerParams", "MeasurementNoise",
@@ -297,19 +299,6 @@ class ContourConfig:
                                  f"{sorted(self.axes)}")
 
 
-def _fail(where: str, message: str) -> ConfigError:
-    return ConfigError(f"{where}: {message}")
-
-
-def _table(value, allowed, where: str) -> dict:
-    if not isinstance(value, Mapping):
-        raise _fail(where, f"must be a table; got {value!r}")
-    unknown = sorted(set(value) - set(allowed))
-    if unknown:
-        raise _fail(where, f"unknown key(s) {unknown}; allowed keys are {list(allowed)}")
-    return dict(value)
-
-
 def _build(cls, kwargs: dict, where: str):
     try:
         return cls(**kwargs)
@@ -318,13 +307,13 @@ def _build(cls, kwargs: dict, where: str):
 
 
 def _axis(name: str, table, source: str) -> AxisConfig:
-    table = _table(table, _AXIS_KEYS, name)
+    table = _check_keys(table, _AXIS_KEYS, name)
     if "controller" not in table:
         raise _fail(f"{name}.controller", "missing: every axis needs a [" + name +
                     ".controller] table with kp and kd")
     drive_doc = {k: table[k] for k in ("body", "link") if k in table}
     drive, _ = parse_drive_config(drive_doc, source=f"{source}: {name}")
-    ctl = _table(table["controller"], _CONTROLLER_KEYS, f"{name}.controller")
+    ctl = _check_keys(table["controller"], _CONTROLLER_KEYS, f"{name}.controller")
     for key in ("kp", "kd"):
         if key not in ctl:
             raise _fail(f"{name}.controller", f"missing {key}; add it [N/m or N·s/m]")
@@ -370,11 +359,11 @@ def parse_contour_config(document: Mapping, *, source: str = "config") -> Contou
     (('x', 'y'), 2.0)
     """
     try:
-        top = _table(document, _TOP_KEYS, "top level")
+        top = _check_keys(document, _TOP_KEYS, "top level")
         axes = {a: _axis(a, top[a], source) for a in _AXES if a in top}
         if "path" not in top:
             raise _fail("path", "missing: add a [path] table with radius [m] and feed [m/s]")
-        path_doc = _table(top["path"], _PATH_KEYS, "path")
+        path_doc = _check_keys(top["path"], _PATH_KEYS, "path")
         shape = path_doc.pop("shape", "circle")
         if shape != "circle":
             raise _fail("path.shape", f'only "circle" is simulated; got {shape!r}')
@@ -382,7 +371,7 @@ def parse_contour_config(document: Mapping, *, source: str = "config") -> Contou
             if key not in path_doc:
                 raise _fail("path", f"missing {key}; add it ([m] or [m/s])")
         path = _build(CirclePath, path_doc, "path")
-        noise = _build(MeasurementNoise, _table(top.get("noise", {}), _NOISE_KEYS, "noise"),
+        noise = _build(MeasurementNoise, _check_keys(top.get("noise", {}), _NOISE_KEYS, "noise"),
                        "noise")
         return _build(ContourConfig, {"axes": axes, "path": path, "noise": noise},
                       "top level")
