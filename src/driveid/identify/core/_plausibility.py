@@ -30,7 +30,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from typing import Any
 
 from driveid.identify.core.estimate import Estimate
@@ -141,9 +141,7 @@ def check_plausibility(est: Estimate) -> Estimate:
                             f"value: {_ERROR_HINT}")
     out = est.with_warnings(*messages)
     if at_bound:
-        previous = est.diagnostics.get("at_bound") or {}
-        if not isinstance(previous, Mapping):  # a bare list of names (older results)
-            previous = {str(name): {"at_bound": True} for name in previous}
+        previous = dict(est.diagnostics.get("at_bound") or {})
         out = dataclasses.replace(out, diagnostics={
             **out.diagnostics, "at_bound": {**at_bound, **previous}})
     return out
