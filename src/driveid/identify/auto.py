@@ -149,8 +149,7 @@ def _idim_cutoff(records: Sequence[Record]) -> float:
     # and no higher than the position noise allows (x'' noise 5 % of the signal's); below
     # the decimation's band IDIM filters the force alike (parallel filtering), so a low
     # cut-off costs bandwidth, not bias
-    noisy = min(lowpass_cutoff(r.x, r.fs, highest=band) for r in records)
-    return float(max(min(band, noisy), 0.1))
+    return min(lowpass_cutoff(r.x, r.fs, highest=band) for r in records)
 
 
 def _speed_cutoff(records: Sequence[Record]) -> float | None:
