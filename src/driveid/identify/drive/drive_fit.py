@@ -55,11 +55,12 @@ the fit then compares each quantised position channel with the expected reading
 Bounds and error bars
 ---------------------
 Physical bounds: ``J >= 0``, ``K >= 0``, ``c_mean >= 0``, ``fk_mean >= 0``, ``fs_mean >= 0``,
-link ``k, c >= 0``, gaps ``>= 0``, ``delay >= 0``; signed asymmetries, gains and states are
-free. An estimate that ends on its bound is reported with ``stderr = nan`` and a warning, and
-the covariance of the others is that with it held there. Covariance ``s² (JᵀJ)⁻¹`` of the
-(prewhitened) Jacobian, ``s² = RSS/(N - p)``; standard errors are its diagonal. Encoder
-quantisation is not white; the AR noise model absorbs its correlation where the body moves.
+link ``k, c >= 0``, gaps ``>= 0``, ``delay >= 0``, ``memory >= 0``; signed asymmetries, gains
+and states are free. An estimate that ends on its bound is reported with ``stderr = nan`` and a
+warning, and the covariance of the others is that with it held there. Covariance
+``s² (JᵀJ)⁻¹`` of the (prewhitened) Jacobian, ``s² = RSS/(N - p)``; standard errors are its
+diagonal. Encoder quantisation is not white; the AR noise model absorbs its correlation where
+the body moves.
 
 References
 ----------
@@ -179,7 +180,9 @@ def _scale(name: str, value: float, base: DriveParams) -> float:
             other = 0.0
         if other > 0:
             return 0.1 * other if field_name.endswith("delta") else other
-    return 1e-3 if field_name in ("gap_plus", "gap_minus", "delay") else 1.0
+    # lengths and times that are often 0 at the start: a millimetre (milliradian), a
+    # millisecond (a loop's delay, a friction memory)
+    return 1e-3 if field_name in ("gap_plus", "gap_minus", "delay", "memory") else 1.0
 
 
 class _Fit:
