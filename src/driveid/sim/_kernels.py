@@ -8,6 +8,8 @@ Kernels:
   with a pure delay read from a history of past states (cubic Hermite); resumable, so a
   sampled-data controller can run it one control period at a time. With ``rtol`` it strides
   over several grid steps where an embedded error estimate allows (:func:`_integrate`).
+  Bodies with frictional memory (Eq. 2.12) keep a ring of their grid-point velocities in the
+  same history array (:func:`_lagged_velocity`).
 
 All arrays are float64 / int64; the caller validates everything.
 
