@@ -11,7 +11,13 @@
    (tests/identify/test_drive_fit_stribeck.py's record) from starts 30 % off, ``--runs``
    noise realisations: time per fit, largest error, and the coverage of the 95 % intervals.
 
+With ``--memory`` the Lorentzian body also has frictional memory (Eq. 2.12, ``memory`` =
+10 ms in the speed runs, its cost printed against the same map without memory), and the fit
+estimates ``fs_mean``, ``v_s`` and ``memory`` (20 ms) of tests/identify/test_drive_fit_memory.py's
+drive, from fs_mean 30 % low, v_s 30 % high and the memory alternately 30 % low and high.
+
     PYTHONPATH=src python benchmarks/bench_drive_stribeck.py --repeat 5 --runs 20
+    PYTHONPATH=src python benchmarks/bench_drive_stribeck.py --memory --repeat 5 --runs 100
 """
 
 from __future__ import annotations
@@ -76,13 +82,19 @@ def _three_body(extra: dict) -> tuple:
     return drive, dict(duration=5.0, fs=1000.0, reference=0.5 * np.sin(2 * np.pi * t))
 
 
-def speed(repeat: int) -> None:
+MEMORY_VARIANTS = {
+    "lorentzian+memory": dict(stribeck="lorentzian", v_s=0.05, memory=0.01),
+}
+
+
+def speed(repeat: int, memory: bool = False) -> None:
+    variants = {**VARIANTS, **MEMORY_VARIANTS} if memory else VARIANTS
     for label, build in (("one body, stick-slip 20 s", _one_body),
                          ("three bodies, PD 5 s", _three_body)):
         print(f"{label}:")
         coulomb_step = _prepare(*_args(*build({})))["max_step"]
         fns, info = {}, {}
-        for name, extra in VARIANTS.items():
+        for name, extra in variants.items():
             drive, kw = build(extra)
             run = _prepare(*_args(drive, kw))
             res = simulate_drive(drive, **kw)
@@ -94,11 +106,14 @@ def speed(repeat: int) -> None:
         best = _best(fns, repeat)
         # "coulomb" and "coulomb@" are the same run (its own step): the better of the two
         base = min(best["coulomb"], best["coulomb@"])
-        for name in VARIANTS:
+        for name in variants:
             step, switches = info[name]
             print(f"  {name:18s} {best[name] * 1e3:8.2f} ms  x{best[name] / base:5.2f} of "
                   f"Coulomb  step {step:.3g} ms  (x{best[name + '@'] / base:5.2f} on "
                   f"Coulomb's step)  switches {switches}")
+        if memory:  # the memory's own cost: the same map and step without it
+            print(f"  memory against the Lorentzian map alone: "
+                  f"x{best['lorentzian+memory'] / best['lorentzian']:.2f}")
 
 
 def _args(drive: DriveParams, kw: dict) -> tuple:
@@ -115,25 +130,28 @@ def _record(truth: DriveParams, seed: int) -> DriveRecord:
     return DriveRecord(t=res.t, channels={"x1": res.x[0] + rng.normal(0, 1e-4, t.size)}, u=u)
 
 
-def fit_coverage(runs: int) -> None:
+def fit_coverage(runs: int, memory: bool = False) -> None:
     truth = DriveParams(bodies=(BodyParams(J=0.01, c_mean=0.02, fk_mean=0.1, fs_mean=0.25,
                                            fs_delta=0.03, stribeck="lorentzian", v_s=0.3,
-                                           v_s_delta=0.05),))
-    names = ["body1.fs_mean", "body1.v_s"]
-    true = np.array([0.25, 0.3])
+                                           v_s_delta=0.05, memory=0.02 if memory else 0.0),))
+    names = ["body1.fs_mean", "body1.v_s"] + (["body1.memory"] if memory else [])
+    true = np.array([0.25, 0.3, 0.02][:len(names)])
     zero = np.zeros(1)
     t = np.arange(4001) / 1000.0
     u = 0.3 * np.sin(2 * np.pi * 1.0 * t) + 0.1 * np.sin(2 * np.pi * 2.7 * t)
     t_sim = _best({"sim": lambda: simulate_drive(truth, duration=4.0, fs=1000.0,
                                                  torque=u[None])}, 5)["sim"]
-    inside = np.zeros(2)
-    worst = np.zeros(2)
+    inside = np.zeros(len(names))
+    worst = np.zeros(len(names))
     seconds = []
     failed = 0
     for seed in range(runs):
         off = 0.3 if seed % 2 == 0 else -0.3
-        start, _, _ = with_values(truth, zero, zero, {names[0]: true[0] * (1 + off),
-                                                      names[1]: true[1] * (1 - off)})
+        values = {names[0]: true[0] * (1 + off), names[1]: true[1] * (1 - off)}
+        if memory:  # the memory 30 % off either way, fs_mean low and v_s high (the test's)
+            values = {names[0]: true[0] * 0.7, names[1]: true[1] * 1.3,
+                      names[2]: true[2] * (1 + off)}
+        start, _, _ = with_values(truth, zero, zero, values)
         rec = _record(truth, 1000 + seed)
         t0 = time.perf_counter()
         try:
@@ -149,7 +167,8 @@ def fit_coverage(runs: int) -> None:
         inside += np.abs(value - true) <= 1.96 * se
         worst = np.maximum(worst, np.abs(value / true - 1))
     ok = runs - failed
-    print(f"fit of fs_mean, v_s (starts +-30 %), {ok}/{runs} converged:")
+    print(f"fit of {', '.join(n.split('.')[1] for n in names)} (starts +-30 %), {ok}/{runs} "
+          "converged:")
     print(f"  time per fit {np.median(seconds):.2f} s = x{np.median(seconds) / t_sim:.0f} one "
           f"simulation of the record ({t_sim * 1e3:.2f} ms)")
     for j, n in enumerate(names):
@@ -161,10 +180,12 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=5, help="timing repeats (best of)")
     ap.add_argument("--runs", type=int, default=100, help="noise realisations of the fit")
+    ap.add_argument("--memory", action="store_true",
+                    help="add frictional memory (Eq. 2.12) to the Lorentzian body")
     args = ap.parse_args()
-    speed(args.repeat)
+    speed(args.repeat, args.memory)
     if args.runs > 0:
-        fit_coverage(args.runs)
+        fit_coverage(args.runs, args.memory)
 
 
 if __name__ == "__main__":

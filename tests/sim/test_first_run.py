@@ -74,6 +74,12 @@ CASES = {
                                        stribeck="lorentzian", v_s=0.2, v_s_delta=0.05,
                                        dwell_gamma=0.5, dwell_kappa=0.8),)),
         dict(duration=2.0, x0=[0.5])),
+    # frictional memory: the velocity rings in the history array (Eq. 2.12)
+    "Stribeck map with memory, stick-slip": (
+        DriveParams(bodies=(BodyParams(J=0.01, K=1.0, c_mean=0.05, fk_mean=0.1, fs_mean=0.3,
+                                       fs_delta=0.05, stribeck="bo_pavelescu", v_s=0.2,
+                                       v_s_delta=0.05, memory=0.013),)),
+        dict(duration=2.0, x0=[0.5])),
 }
 
 

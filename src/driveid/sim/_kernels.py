@@ -8,6 +8,8 @@ Kernels:
   with a pure delay read from a history of past states (cubic Hermite); resumable, so a
   sampled-data controller can run it one control period at a time. With ``rtol`` it strides
   over several grid steps where an embedded error estimate allows (:func:`_integrate`).
+  Bodies with frictional memory (Eq. 2.12) keep a ring of their grid-point velocities in the
+  same history array (:func:`_lagged_velocity`).
 
 All arrays are float64 / int64; the caller validates everything.
 
@@ -65,6 +67,12 @@ STRIBECK_EXPONENTIAL = 2  # Bo-Pavelescu Eq. 2.5
 # rising fraction of the static excess reached at its last breakaway [-]
 COL_STUCK_AT = 17
 COL_RISE = 18
+# frictional memory (Eq. 2.12): the lag [s], then columns the kernel writes: where the body's
+# velocity history starts in ``hist``, its length (a ring) and its last grid step written
+COL_MEMORY = 19
+COL_RING = 20
+COL_RING_LEN = 21
+COL_LAST = 22
 # link types
 LINK_NONE = 0
 LINK_SHAFT = 1
@@ -167,11 +175,13 @@ def _delayed_at_node(hist, k, s, h):
 def _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work):
     """Compute the applied force on every body (but its own friction) and each link force.
 
-    par rows (19 columns, zero-padded): bodies (J, K, c_mean, c_delta, fk_mean, fk_delta,
+    par rows (23 columns, zero-padded): bodies (J, K, c_mean, c_delta, fk_mean, fk_delta,
     fs_lo, fs_hi, ripple amplitude, ripple wavenumber 2π/P, ripple phase, Stribeck map
     code, v_s for v > 0, v_s for v < 0, Stribeck exponent, dwell gamma (0: no rising
     static friction), dwell kappa, then two state columns the kernel writes: the time the
-    body stuck and the rising fraction at its last breakaway), links (type, k, c,
+    body stuck and the rising fraction at its last breakaway; the memory lag (0: none),
+    then three columns the kernel writes: its velocity ring's first column in ``hist``,
+    the ring's length and the last grid step stored), links (type, k, c,
     gap_plus, gap_minus, allow_tension, restitution, rest_velocity), feedback (on, body, P,
     D, delay, sat).
     inp rows: torque of each body, reference. work: applied forces, then link forces.
@@ -207,27 +217,31 @@ def _forces(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work):
 
 
 @njit(cache=True, inline="always")
-def _friction(y, nb, i, m, par):
-    """Friction force of slipping body i in direction m (its mode) [N·m or N]."""
+def _friction(tau, y, nb, i, m, par, hist, h):
+    """Friction force of slipping body i in direction m (its mode) at time tau [N·m or N]."""
     level = par[i, 4]
     if par[i, 8] != 0.0:  # friction ripple periodic in position (drive_types)
         level += par[i, 8] * math.sin(par[i, 9] * y[i] + par[i, 10])
     f = (par[i, 2] + par[i, 3] * m) * y[nb + i] + level * m + par[i, 5]
     if par[i, 11] != STRIBECK_NONE:  # a separate function: Coulomb bodies pay one compare
-        f += _stribeck(y[nb + i], i, m, par)
+        f += _stribeck(tau, y[nb + i], i, m, par, hist, h)
     return f
 
 
 @njit(cache=True, **_HOT_LOOP)
-def _stribeck(v, i, m, par):
+def _stribeck(tau, v, i, m, par, hist, h):
     """Stribeck term of slipping body i in direction m: the static excess times its shape.
 
     ``(static edge - kinetic level) * rise * g(|v| / v_s)`` with ``g = 1/(1 + r²)``
     (Lorentzian, Eq. 2.3) or ``exp(-r**delta)`` (Bo–Pavelescu, Eq. 2.5), each direction with
     its own edge, kinetic level and v_s; ``rise`` is 1 without dwell (Eq. 2.9 otherwise).
+    With frictional memory (Eq. 2.12) ``v`` is the velocity one lag ago
+    (:func:`_lagged_velocity`); the direction m stays the current one.
     The same formulas as :mod:`driveid.models.friction` (tests compare them): the kernel
     keeps its own copy because numba's cache checks only this file.
     """
+    if par[i, COL_MEMORY] > 0.0:
+        v = _lagged_velocity(tau, v, i, par, hist, h)
     r = abs(v) / (par[i, 12] if m > 0 else par[i, 13])
     if par[i, 11] == STRIBECK_LORENTZIAN:
         g = 1.0 / (1.0 + r * r)
@@ -235,6 +249,67 @@ def _stribeck(v, i, m, par):
         g = math.exp(-(r ** par[i, 14]))
     edge = par[i, 7] if m > 0 else par[i, 6]
     return (edge - (par[i, 4] * m + par[i, 5])) * par[i, COL_RISE] * g
+
+
+@njit(cache=True, inline="always")
+def _lagged_velocity(tau, v_now, i, par, hist, h):
+    """Velocity of body i at ``tau - memory`` [rad/s or m/s] from its history ring.
+
+    Ring rows 0 and 1: velocity and acceleration at the grid points ``k h`` (column
+    ``COL_RING + k % COL_RING_LEN``), written up to grid step ``COL_LAST``. Cubic Hermite
+    between stored grid points (the delay history's interpolant, :func:`_delayed`); past
+    the last one (a lag shorter than the step) linear towards the current velocity, so a
+    lag -> 0 tends to the memoryless map; before t = 0 the velocity at t = 0.
+    """
+    td = tau - par[i, COL_MEMORY]
+    base = int(par[i, COL_RING])
+    if td <= 0.0:
+        return hist[0, base]
+    n = int(par[i, COL_RING_LEN])
+    last = int(par[i, COL_LAST])
+    pos = td * (1.0 / h)
+    k = int(math.floor(pos))
+    if k >= last:
+        t_last = last * h
+        v_last = hist[0, base + last % n]
+        span = tau - t_last
+        if span <= 0.0:
+            return v_now
+        return v_last + (v_now - v_last) * ((td - t_last) / span)
+    ca = base + k % n
+    cb = base + (k + 1) % n
+    h00, h10, h01, h11 = _hermite(pos - k, h)
+    return h00 * hist[0, ca] + h10 * hist[1, ca] + h01 * hist[0, cb] + h11 * hist[1, cb]
+
+
+@njit(cache=True, **_HOT_LOOP)
+def _record_velocities(hist, par, nb, step, y, k1):
+    """Store the velocity and acceleration of every memory body at grid step ``step``."""
+    for i in range(nb):
+        if par[i, COL_MEMORY] > 0.0:
+            c = int(par[i, COL_RING]) + step % int(par[i, COL_RING_LEN])
+            hist[0, c] = y[nb + i]
+            hist[1, c] = k1[nb + i]
+            par[i, COL_LAST] = step
+
+
+@njit(cache=True)
+def _memory_rings(par, nb, h, first):
+    """Lay out the velocity rings of the memory bodies from column ``first`` of ``hist``.
+
+    Each ring holds the grid steps of the body's lag + 3 (the Hermite read of
+    :func:`_lagged_velocity` reaches one step further back than the lag, and one more
+    guards round-off). Returns the number of columns they take.
+    """
+    col = first
+    for i in range(nb):
+        if par[i, COL_MEMORY] > 0.0:
+            n = int(math.ceil(par[i, COL_MEMORY] / h - 1e-9)) + 3
+            par[i, COL_RING] = col
+            par[i, COL_RING_LEN] = n
+            par[i, COL_LAST] = 0.0
+            col += n
+    return col - first
 
 
 @njit(cache=True, inline="always")
@@ -253,12 +328,12 @@ def _band(dwell, i, par):
 
 
 @njit(cache=True, **_HOT_LOOP)
-def _acceleration(y, nb, i, modes, par, work):
+def _acceleration(tau, y, nb, i, modes, par, work, hist, h):
     """Acceleration of body i in its mode, from the forces in ``work`` (computed at y)."""
     m = modes[i]
     if m == LOCKED or m == STUCK:
         return 0.0
-    return (work[i] - _friction(y, nb, i, m, par)) / par[i, 0]
+    return (work[i] - _friction(tau, y, nb, i, m, par, hist, h)) / par[i, 0]
 
 
 @njit(cache=True, inline="always")
@@ -284,7 +359,7 @@ def _deriv(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b, work, dy):
         ext = _interp(inp, i, tau, fs_in)
         if i == fb_body:
             ext += cmd
-        fric = _friction(y, nb, i, m, par)
+        fric = _friction(tau, y, nb, i, m, par, hist, h)
         dy[i] = v
         dy[nb + i] = (work[i] - fric) / par[i, 0]
         p_in += ext * v
@@ -640,8 +715,16 @@ def drive_kernel(y0, modes0, par, inp, abort_limit, fs_in, n_out, n_sub, max_eve
     e_out = np.full((6, n_out), np.nan)
     has_fb = par[fbr, 0] != 0.0
     fbb = int(par[fbr, 1]) if has_fb else 0
-    ring = _ring(par[fbr, 4], 1.0 / (fs_in * n_sub)) if has_fb and par[fbr, 4] > 0.0 else 0
-    hist = np.zeros((4, (n_steps + 2 if has_fb else 2) + 2 * ring))
+    h = 1.0 / (fs_in * n_sub)
+    ring = _ring(par[fbr, 4], h) if has_fb and par[fbr, 4] > 0.0 else 0
+    n_fb = (n_steps + 2 if has_fb else 2) + 2 * ring
+    # velocity rings of the bodies with frictional memory after the feedback's columns;
+    # the history before t = 0 is the initial velocity (a resumed call starts it afresh)
+    n_mem = _memory_rings(par, nb, h, n_fb)
+    hist = np.zeros((4, n_fb + n_mem))
+    for i in range(nb):
+        if par[i, COL_MEMORY] > 0.0:
+            hist[0, int(par[i, COL_RING])] = y[nb + i]
     status, abort_index, abort_value = _integrate(
         y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume, n_steps, rtol,
         max_stride, work, k1, k2, k3, k4, ys, ytry, yend, ysave, k1save, phi0, phiy, phi1,
@@ -692,7 +775,11 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     max_stride = min(max_stride, n_sub)
     if has_fb and par[fbr, 4] > 0.0:
         max_stride = min(max_stride, int(math.ceil(par[fbr, 4] / h - 1e-9)) - 1)
-    adaptive = rtol > 0.0 and max_stride > 1
+    # frictional memory takes every grid step: its history holds the grid points
+    memory = False
+    for i in range(nb):
+        memory = memory or par[i, COL_MEMORY] > 0.0
+    adaptive = rtol > 0.0 and max_stride > 1 and not memory
     pos_scale = 0.0
     vel_scale = 0.0
     m = np.int64(1)  # grid steps in the step being taken
@@ -703,7 +790,7 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
     d_grid = par[fbr, 4] / h if has_fb else 0.0  # the delay in grid steps
     delayed = has_fb and par[fbr, 4] > 0.0
     ring = _ring(par[fbr, 4], h) if delayed else 0
-    n_grid = hist.shape[1] - 2 * ring
+    n_grid = n_steps + 2 if has_fb else 2
     if has_fb:
         hist[3, 0] = EVENT  # the delayed read leaves the initial state: a kink
     pending_node = -1  # an event node's column still waiting for its acceleration after
@@ -765,6 +852,8 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                         else:
                             m_pref = m
                 if not rolled_back:
+                    if memory:
+                        _record_velocities(hist, par, nb, step, y, k1)
                     if has_fb:
                         hist[2, step] = k1[nb + fbb]
                         xd, vd = _delayed(t, par[fbr, 4], h, hist, x0b, v0b, y[fbb],
@@ -906,7 +995,8 @@ def _integrate(y, modes, par, inp, abort_limit, fs_in, n_sub, max_events, resume
                 _forces_and_validity(tau, y, nb, modes, par, inp, hist, fs_in, h, x0b, v0b,
                                      work, no_phi)
                 if _r == 0 and pending_node >= 0:  # the acceleration before the switch
-                    hist[3, pending_node] = _acceleration(y, nb, fbb, modes, par, work)
+                    hist[3, pending_node] = _acceleration(tau, y, nb, fbb, modes, par, work,
+                                                                    hist, h)
                 _resolve(tau, y, nb, modes, par, work, counts, jump)
             n_ev += 1
             if pending_node >= 0:

@@ -63,7 +63,7 @@ __all__ = ["RunOptions", "load_drive_config", "parse_drive_config", "read_toml",
 _TOP_KEYS = ("preset", "body", "link", "feedback", "run")
 _BODY_KEYS = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "fs_mean", "fs_delta",
               "locked", "ripple_amplitude", "ripple_period", "ripple_phase", "stribeck", "v_s",
-              "v_s_delta", "stribeck_exponent", "dwell_gamma", "dwell_kappa")
+              "v_s_delta", "stribeck_exponent", "dwell_gamma", "dwell_kappa", "memory")
 _LINK_KEYS = {"shaft": ("type", "k", "c"),
               "backlash": ("type", "gap_plus", "gap_minus", "k", "c", "allow_tension",
                            "contact", "restitution", "rest_velocity"),

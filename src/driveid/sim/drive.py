@@ -95,7 +95,7 @@ __all__ = [
 ]
 
 
-PAR_WIDTH = 19  # columns of the kernel's parameter rows (see _kernels._forces)
+PAR_WIDTH = 23  # columns of the kernel's parameter rows (see _kernels._forces)
 _STRIBECK_CODES = {None: _k.STRIBECK_NONE, "lorentzian": _k.STRIBECK_LORENTZIAN,
                    "bo_pavelescu": _k.STRIBECK_EXPONENTIAL}
 
@@ -103,13 +103,14 @@ _STRIBECK_CODES = {None: _k.STRIBECK_NONE, "lorentzian": _k.STRIBECK_LORENTZIAN,
 def _body_row(b: BodyParams) -> list[float]:
     wavenumber = 2.0 * math.pi / b.ripple_period if b.has_ripple else 0.0
     v_s = 1.0 if b.v_s is None else b.v_s
-    # the last two columns are the kernel's friction state (when stuck, rise at breakaway)
+    # columns 17-18 are the kernel's friction state (when stuck, rise at breakaway), 20-22
+    # its velocity ring of the memory (first column, length, last step), all written there
     return [b.J, b.K, b.c_mean, b.c_delta, b.fk_mean, b.fk_delta,
             b.fs_delta - b.fs_mean, b.fs_delta + b.fs_mean,
             b.ripple_amplitude, wavenumber, b.ripple_phase,
             _STRIBECK_CODES[b.stribeck], v_s + b.v_s_delta, v_s - b.v_s_delta,
             b.stribeck_exponent, 0.0 if b.dwell_gamma is None else b.dwell_gamma,
-            b.dwell_kappa, 0.0, 1.0]
+            b.dwell_kappa, 0.0, 1.0, b.memory, 0.0, 0.0, 0.0]
 
 
 def _link_row(ln) -> list[float]:
@@ -626,6 +627,11 @@ def _simulate_controlled(params, duration, fs, x0, v0, torque, max_step, max_eve
     _require(callable(controller), "controller must be callable as controller(t, x, v)",
              controller)
     _require(method != "exact", 'a controller needs method="rk4" or "auto"', method)
+    memory = [i for i, b in enumerate(params.bodies) if b.memory > 0.0]
+    _require(not memory, "frictional memory (BodyParams.memory) needs one uninterrupted run: "
+             "a controller callback resumes the kernel every period and its velocity history "
+             "would restart; use params.feedback (a PD loop) or memory = 0 on bodies",
+             memory)
     _require(isinstance(control_rate, (int, float)) and 0 < control_rate < math.inf,
              "control_rate must be a positive rate [Hz] with a controller", control_rate)
     _require(isinstance(delay, int) and delay >= 0,

@@ -29,7 +29,10 @@ direction is a one-sided map of :mod:`driveid.models.friction` (the ``±`` branc
 ``asymmetric_friction``). ``ρ = 1`` unless the static friction rises with dwell
 (``dwell_gamma``, Kato/Howe Eq. 2.6): then the band a stuck body must overcome is
 ``fk + (fs - fk)·ρ(t)``, ``ρ(t) = 1 - exp(-t**kappa/gamma)`` of the time ``t`` it has been
-stuck, and the slip phase keeps the ``ρ`` reached at breakaway (Eq. 2.9).
+stuck, and the slip phase keeps the ``ρ`` reached at breakaway (Eq. 2.9). With frictional
+memory (``memory`` = Δt, Eq. 2.12) the shape ``g`` reads the velocity one lag ago,
+``g(|x'(t - Δt)| / v_{S,s})``, while ``s`` and the viscous term stay those of the current
+velocity.
 
 References
 ----------
@@ -128,6 +131,18 @@ class BodyParams:
         risen one (Eq. 2.9).
     dwell_kappa : float
         Exponent ``kappa`` of Eq. 2.6 [-], > 0 (default 1).
+    memory : float
+        Frictional memory Δt [s], >= 0 (default 0: none; Eq. 2.12, Hess–Soom): the Stribeck
+        shape of the slip friction reads the velocity Δt ago, so friction lags the velocity
+        and traces a hysteresis loop against it (lower while accelerating, higher while
+        decelerating). The direction (sign) and the viscous term stay those of the current
+        velocity, so friction never pushes. The velocity history is the body's own motion,
+        zero while it is stuck: right after a breakaway the friction starts at the static
+        edge and falls along the map Δt late; before t = 0 the history is the initial
+        velocity. Sticking and breakaway still follow the static band (2.137). Needs
+        ``stribeck`` (the memory acts on the Stribeck part only; a Coulomb level has no
+        velocity to lag). Event-located RK4 path only, every grid step (no strides), and
+        not with a ``controller`` callback (its resumed runs would lose the history).
     """
 
     J: float
@@ -149,6 +164,7 @@ class BodyParams:
     stribeck_exponent: float = 2.0
     dwell_gamma: float | None = None
     dwell_kappa: float = 1.0
+    memory: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "ripple_amplitude",
@@ -233,6 +249,11 @@ class BodyParams:
                      self.dwell_gamma)
         _require(self.dwell_kappa > 0, "BodyParams.dwell_kappa must be > 0",
                  self.dwell_kappa)
+        _require(_finite("BodyParams", "memory", self.memory) >= 0,
+                 "BodyParams.memory must be >= 0 [s] (0: no frictional memory)", self.memory)
+        _require(self.memory == 0.0 or self.stribeck is not None,
+                 "BodyParams.memory acts on the Stribeck part of the slip friction only: set "
+                 'stribeck (e.g. "lorentzian" with v_s) or memory = 0', self.memory)
         extended = self.stribeck is not None or self.dwell_gamma is not None
         _require(not (extended and (self.has_ripple or self.lugre is not None)),
                  "BodyParams.stribeck and dwell_gamma take the Coulomb + viscous map: set "

@@ -29,6 +29,7 @@ _CHANNEL = re.compile(r"^([xv])([1-9][0-9]*)$")
 _BODY_FIELDS = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta", "fs_mean", "fs_delta")
 # only on a body with a Stribeck map / rising static friction (BodyParams.stribeck, dwell_gamma)
 _STRIBECK_FIELDS = ("v_s", "v_s_delta", "stribeck_exponent")
+_MEMORY_FIELDS = ("memory",)  # frictional memory (Eq. 2.12) acts on the Stribeck part only
 _DWELL_FIELDS = ("dwell_gamma", "dwell_kappa")
 _SHAFT_FIELDS = ("k", "c")
 _BACKLASH_FIELDS = ("gap_plus", "gap_minus", "k", "c")
@@ -180,11 +181,12 @@ def parameter_names(params: DriveParams, *, states: bool = True) -> list[str]:
 
 
 def _body_fields(b: BodyParams) -> tuple[str, ...]:
-    """Scalar parameters of a body: friction levels, then its Stribeck and dwell ones."""
+    """Scalar parameters of a body: friction levels, then its Stribeck, memory, dwell ones."""
     fields = _BODY_FIELDS
     if b.stribeck is not None:
         # the exponent of the Lorentzian map is not used: not a parameter of it
         fields += _STRIBECK_FIELDS if b.stribeck == "bo_pavelescu" else _STRIBECK_FIELDS[:2]
+        fields += _MEMORY_FIELDS
     if b.dwell_gamma is not None:
         fields += _DWELL_FIELDS
     return fields
@@ -213,7 +215,7 @@ def parameter_unit(name: str, units: str = "rad") -> str:
         "c_mean": "N·m·s/rad" if rot else "N·s/m", "c_delta": "N·m·s/rad" if rot else "N·s/m",
         "c": "N·m·s/rad" if rot else "N·s/m", "D": "N·m·s/rad" if rot else "N·s/m",
         "gap_plus": units, "gap_minus": units, "x0": units,
-        "v0": "rad/s" if rot else "m/s", "delay": "s",
+        "v0": "rad/s" if rot else "m/s", "delay": "s", "memory": "s",
         "v_s": "rad/s" if rot else "m/s", "v_s_delta": "rad/s" if rot else "m/s",
         "stribeck_exponent": "-", "dwell_kappa": "-", "dwell_gamma": "s**kappa",
     }
@@ -232,8 +234,8 @@ def lower_bound(name: str) -> float:
     -------
     float
         0 for J, K, viscous and kinetic/static friction means, link k and c, gaps, the
-        delay and the Stribeck and dwell constants; ``-inf`` for signed asymmetries, gains
-        and initial states.
+        delay, the frictional memory and the Stribeck and dwell constants; ``-inf`` for
+        signed asymmetries, gains and initial states.
     """
     field_name = name.rsplit(".", 1)[1]
     if field_name in ("c_delta", "fk_delta", "fs_delta", "v_s_delta", "x0", "v0", "P", "D"):
@@ -539,6 +541,8 @@ def drive_to_toml(params: DriveParams, *, duration: float | None = None,
             out.append(f'stribeck = "{b.stribeck}"')
             out += [line(f, getattr(b, f), f"body{i + 1}.{f}")
                     for f in _body_fields(b) if f in _STRIBECK_FIELDS]
+            if b.memory > 0.0:
+                out.append(line("memory", b.memory, f"body{i + 1}.memory"))
         if b.dwell_gamma is not None:
             out += [line(f, getattr(b, f), f"body{i + 1}.{f}") for f in _DWELL_FIELDS]
         if b.has_ripple:

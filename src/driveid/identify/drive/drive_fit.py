@@ -55,14 +55,16 @@ the fit then compares each quantised position channel with the expected reading
 Bounds and error bars
 ---------------------
 Physical bounds: ``J >= 0``, ``K >= 0``, ``c_mean >= 0``, ``fk_mean >= 0``, ``fs_mean >= 0``,
-link ``k, c >= 0``, gaps ``>= 0``, ``delay >= 0``; signed asymmetries, gains and states are
-free. An estimate that ends on its bound is reported with ``stderr = nan`` and a warning, and
-the covariance of the others is that with it held there. Covariance ``s² (JᵀJ)⁻¹`` of the
-(prewhitened) Jacobian, ``s² = RSS/(N - p)``; standard errors are its diagonal. That Jacobian
-is the *local* one (steps 1e-4 and 1e-5, :meth:`DriveProblem.local_jacobian`), not the fit's
-1e-3 secant, which straddles event-count kinks: with the secant, the standard errors of two
-parameters that nearly trade (motor viscous friction and loop delay) were 2-2.6x too small. Encoder
-quantisation is not white; the AR noise model absorbs its correlation where the body moves.
+link ``k, c >= 0``, gaps ``>= 0``, ``delay >= 0``, ``memory >= 0``; signed asymmetries, gains
+and states are free. An estimate that ends on its bound is reported with ``stderr = nan`` and a
+warning, and the covariance of the others is that with it held there. Covariance
+``s² (JᵀJ)⁻¹`` of the (prewhitened) Jacobian, ``s² = RSS/(N - p)``; standard errors are its
+diagonal. That Jacobian is the *local* one (small step pairs,
+:meth:`DriveProblem.local_jacobian`), not the fit's 1e-3 secant, which straddles event-count
+kinks; the fit ends with a few steps using it (``_polish``). With the secant alone, the fit
+stopped short along the trade of two parameters (motor viscous friction and loop delay) and
+their standard errors were 2-2.6x too small. Encoder quantisation is not white; the AR noise
+model absorbs its correlation where the body moves.
 
 References
 ----------
@@ -182,7 +184,9 @@ def _scale(name: str, value: float, base: DriveParams) -> float:
             other = 0.0
         if other > 0:
             return 0.1 * other if field_name.endswith("delta") else other
-    return 1e-3 if field_name in ("gap_plus", "gap_minus", "delay") else 1.0
+    # lengths and times that are often 0 at the start: a millimetre (milliradian), a
+    # millisecond (a loop's delay, a friction memory)
+    return 1e-3 if field_name in ("gap_plus", "gap_minus", "delay", "memory") else 1.0
 
 
 class _Fit:
