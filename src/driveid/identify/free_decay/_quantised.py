@@ -118,9 +118,12 @@ def bootstrap_covariance(problem, chosen, s2, quantum, replicates, rng, progress
     # noise model gives are compared with those each replicate's refitted model gives
     # (noise_model_calibration)
     source = reading = None
-    if not noise.is_white:
+    # a refused AR model (the white fit kept) still leaves coloured residuals: white
+    # replicates would be several times short there (z of 8 seen, with no warning)
+    if not noise.is_white or getattr(problem, "noise_rejected", False):
         source = fit_noise_model(_joined_y(problem) - fitted, segments=problem.segments,
                                  order=MAX_ORDER, n_params=chosen["p"].size)
+    if not noise.is_white:
         jac = problem.model(chosen["p"], chosen["counts"])[1] \
             if problem.n <= SINK_ROWS else None
         reading = _analytic_variances(problem, chosen, noise, jac)
