@@ -42,6 +42,10 @@ quantisation is not white noise (its errors follow the signal), so for quantised
 the fitted response plus the residual noise re-quantised on grids of random phase, refitted
 ``bootstrap`` times; its variances are scaled by ``(t_{B-1,0.975}/1.96)²`` (1.108 at B = 25)
 so that ±1.96 standard errors has the Student-t width of a variance estimated from B refits.
+With coloured noise the replicates' noise is a long AR model of the residuals less the
+rounding's white floor, and the covariance is calibrated for the record's own noise-model
+error (:mod:`driveid.identify.free_decay._quantised`; issue 24, low-pass noise with
+encoder steps).
 
 A constant position offset (encoder zero ≠ spring zero) is not identifiable from a free
 decay: it trades one-for-one with ``theta_k_delta``. Pass the spring zero ``x_ref``; the
