@@ -50,7 +50,8 @@ Where noise of sd σ does not dither a rounding encoder of step q (σ < q/2), th
 reading is biased by up to ``q/π·exp(-2π²σ²/q²)`` with the same sign at the same position;
 the fit then compares each quantised position channel with the expected reading
 ``E Q(x + n) = x + Σ_k q/(πk) (-1)^k exp(-2π²k²σ²/q²) sin(2πk x/q)`` (Widrow's series,
-``σ² = rms² - q²/12``) and takes a Newey–West sandwich covariance.
+σ from the readings' second moment about the model positions, :func:`_encoder_noise`) and
+takes a Newey–West sandwich covariance.
 
 Bounds and error bars
 ---------------------
