@@ -10,8 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from driveid.identify.drive import _drive_model
+from driveid.identify.drive._drive_encoder import _encoder_noise
 from driveid.identify.drive._drive_model import DriveProblem, DriveRecord, get_value
-from driveid.identify.drive.drive_fit import _encoder_noise, estimate_drive
+from driveid.identify.drive.drive_fit import estimate_drive
 from driveid.sim import BacklashLink, BodyParams, DriveParams, simulate_drive
 from driveid.sim.presets import preset_testbed
 
