@@ -677,9 +677,9 @@ def _polish(fit: _Fit, sol, lower, upper, max_nfev: int = 10):
     """Finish the fit with the local Jacobian (see :meth:`DriveProblem.local_jacobian`).
 
     The fit's 1e-3 secant straddles event kinks; where parameters nearly trade, the point
-    where the *secant* gradient vanishes can sit a standard error or more from the minimum
-    along the weak direction (test bed, white noise: the motor's viscous friction 2.3 %
-    and the delay 0.012 % from it, against standard errors of 3.3 % and 0.016 %). A few
+    where the *secant* gradient vanishes can sit about a standard error from the minimum
+    along the weak direction (test bed, white noise, seed 1: the motor's viscous friction
+    2.9 % and the delay 0.015 % from it, against standard errors of 3.3 % and 0.016 %). A few
     trust-region steps with the local derivative go on from there; kept only if they lower
     the objective.
     """
