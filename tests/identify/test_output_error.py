@@ -216,3 +216,14 @@ def test_long_records_are_fitted_on_every_kth_sample_with_honest_errors(monkeypa
         assert 1.6 < ratio < 2.5, (name, ratio)  # sqrt(4) = 2, +-25 % for the candidate mix
         # same data subsampled: the two estimates differ by ~ the thin fit's error
         assert abs(thin.value(name) - full.value(name)) < 4 * thin.stderr(name)
+
+
+def test_detect_quantum_reads_an_encoder_printed_with_few_decimals():
+    # a lab's export: 8000 counts/rev converted to rad and printed to 1e-7 rad (each step
+    # then 1e-4 of itself off) over ~1000 counts; the old smallest-step search missed it
+    q = 2 * np.pi / 8000
+    walk = np.cumsum(np.random.default_rng(0).normal(0, 3e-3, 20000))
+    printed = np.round(np.round(walk / q) * q, 7)
+    # 1e-6: the refined step averages ~1e4 steps of 5e-8 rad print error each
+    assert detect_quantum(printed) == pytest.approx(q, rel=1e-6)
+    assert detect_quantum(walk) is None  # continuous data: no grid
