@@ -2,15 +2,24 @@
 
 Channels are named as ``driveid simulate drive`` writes them (``x1``, ``v1``, ``x2`` ... and
 ``command`` or ``u``); other column names are mapped with ``channels``.
+
+The drive fit simulates at one fixed rate, so a record is put on a uniform clock here: a
+clock within ``max_jitter`` of uniform (a crystal a little slow, timestamps rounded) is
+interpolated onto its median interval without a word; a jittered one that the reading
+accepted (``--max-jitter none``) too, with a warning that says what was done (issue 24
+item 5: resample and warn; before, the fit refused every clock not uniform to 1e-6).
 """
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from driveid.errors import FileFormatError
+import numpy as np
+
+from driveid.errors import FileFormatError, RecordWarning
 from driveid.identify.drive._drive_model import DriveRecord
 
 __all__ = ["read_drive_record"]
@@ -27,8 +36,11 @@ def read_drive_record(path: str | Path, *, read_kwargs: Mapping[str, Any] | None
     path : str or Path
         The table (CSV and the other formats :func:`driveid.io.read_table` reads).
     read_kwargs : mapping, optional
-        Keywords of :func:`driveid.io.read_record` (window [s], scale, units, jitter, encoder
-        counts); ``columns`` is set here.
+        Keywords of :func:`driveid.io.read_record` (window [s], scale, units, encoder
+        counts); ``columns`` is set here. ``max_jitter`` [-] (default 0.01) is the largest
+        relative interval deviation accepted (read_record refuses more) and resampled
+        without a warning; with None any increasing clock is accepted and, beyond 1 %,
+        resampled with a :class:`~driveid.errors.RecordWarning`.
     time_column : str or int, optional
         Time column when it is not found by name.
     channels : dict of str to str, optional
@@ -41,12 +53,18 @@ def read_drive_record(path: str | Path, *, read_kwargs: Mapping[str, Any] | None
     Returns
     -------
     DriveRecord
-        Time [s], the channels [m or rad, m/s or rad/s] and the input [N or N·m].
+        Time [s] on a uniform clock, the channels [m or rad, m/s or rad/s] and the input
+        [N or N·m]; ``meta["resampled"]`` says when the clock was made uniform.
 
     Raises
     ------
     FileFormatError
         If the file has no channel of the drive.
+
+    Warns
+    -----
+    RecordWarning
+        When a clock jittered beyond ``max_jitter`` was resampled.
     """
     from driveid.io import read_record
     from driveid.io.tables import read_table
@@ -54,6 +72,7 @@ def read_drive_record(path: str | Path, *, read_kwargs: Mapping[str, Any] | None
     path = Path(path)
     channels = dict(channels or {})
     kwargs = dict(read_kwargs or {})
+    tolerance = kwargs.get("max_jitter", 0.01)
     table = read_table(path)
     names = set(table.columns)
     mapping = {}
@@ -89,4 +108,27 @@ def read_drive_record(path: str | Path, *, read_kwargs: Mapping[str, Any] | None
             chans[f"v{i}"] = rec.v
         if rec.u is not None and ucol is not None:
             u = rec.u
+    t, chans, u, meta = _uniform_clock(path, t, chans, u, meta, tolerance)
     return DriveRecord(t=t, channels=chans, u=u, meta=meta)
+
+
+def _uniform_clock(path: Path, t: np.ndarray, chans: dict[str, np.ndarray],
+                   u: np.ndarray | None, meta: dict[str, Any],
+                   tolerance: float | None) -> tuple:
+    """Interpolate the record onto ``t0 + k·dt`` (median ``dt``) unless it is uniform."""
+    steps = np.diff(t)  # positive: read_record refuses a clock that goes back
+    dt = float(np.median(steps))
+    jitter = float(np.max(np.abs(steps - dt))) / dt
+    if jitter <= 1e-6:
+        return t, chans, u, meta
+    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+    if jitter > (0.01 if tolerance is None else tolerance):
+        warnings.warn(
+            f"{path.name}: sampling is not uniform (worst interval {100 * jitter:.3g} % off "
+            f"the median); the drive fit simulates at a fixed rate, so the record was "
+            f"resampled linearly to {1 / dt:.6g} Hz ({grid.size} samples); record at a steady "
+            f"rate, or check the timestamps", RecordWarning, stacklevel=3)
+    chans = {name: np.interp(grid, t, values) for name, values in chans.items()}
+    u = None if u is None else np.interp(grid, t, u)
+    meta = {**meta, "resampled": {"from_jitter": jitter, "fs": 1 / dt}}
+    return grid, chans, u, meta
