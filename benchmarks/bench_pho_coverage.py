@@ -29,6 +29,7 @@ drives; the 3-body ``testbed`` preset has no single J), 8000 counts/rev;
     python benchmarks/bench_pho_coverage.py --quick          # 10 repeats, both plants
     python benchmarks/bench_pho_coverage.py --static 1.1,1.3 --negative-d --repeats 40
     python benchmarks/bench_pho_coverage.py --static 1.2 --noise ar1 --phi 0.8 --repeats 40
+    python benchmarks/bench_pho_coverage.py --static 1.1,1.3 --negative-d --workers 16
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ import math
 import sys
 import time
 import warnings
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
 
 import numpy as np
 
@@ -123,9 +126,67 @@ def _accepted(truth, est):
             and abs(est.value("c_mean") / truth["c_mean"] - 1) <= 0.15)
 
 
+def _one_thread():
+    """One BLAS thread per worker process: the workers are the parallelism."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(1)
+
+
+_JOB: dict = {}
+
+
+def _one_realisation(seed):
+    """Identify one seeded realisation (of the campaign in ``_JOB``) by peaks and by OE."""
+    return _identify(seed, **_JOB)
+
+
+def _identify(seed, *, exact, quantum, noise, noise_std, phi, delay, bootstrap, refit,
+              no_bootstrap, fit_static, noise_model, fields, truth):
+    gen = np.random.default_rng(seed)
+    if noise == "encoder":
+        recs = _quantise(exact, quantum, gen)
+    else:
+        recs = _noisy(exact, noise_std * quantum, phi if noise == "ar1" else 0.0, gen)
+    out = {"times": {"peaks": 0.0, "oe": 0.0}, "failed": {"peaks": 0, "oe": 0},
+           "values": {"peaks": None, "oe": None}, "errors": {"peaks": None, "oe": None},
+           "accurate": {"peaks": 0, "oe": 0}, "structure": None, "band": 0, "sandwich": 0}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        t0 = time.process_time()  # processor time: the machine is shared
+        pk = oe = None
+        try:
+            pk = estimate_pho_records(recs, delay=delay, K_known=0.0)
+        except DriveIdError:
+            out["failed"] = {"peaks": 1, "oe": 1}
+        t1 = time.process_time()
+        if pk is not None:
+            out["times"]["peaks"] = t1 - t0
+            try:
+                oe = estimate_pho_output_error(
+                    recs, delay=delay, K_known=0.0, start=pk, bootstrap=bootstrap,
+                    refit=refit, rng=seed,
+                    quantisation="auto" if noise == "encoder" and not no_bootstrap
+                    else None, static=fit_static, noise_model=noise_model)
+            except DriveIdError:
+                out["failed"]["oe"] = 1
+            out["times"]["oe"] = time.process_time() - t0  # includes its peak start
+    for method, est in (("peaks", pk), ("oe", oe)):
+        if est is None:
+            continue
+        out["values"][method] = [est.value(f) for f in fields]
+        out["errors"][method] = [est.stderr(f) for f in fields]
+        out["accurate"][method] = int(_accepted(truth, est))
+    if oe is not None:
+        d = oe.diagnostics
+        out["structure"] = d["structure"]
+        out["band"] = int(d["static_band"] is not None)
+        out["sandwich"] = int(d["adequacy"]["covariance"] == "sandwich")
+    return out
+
 def run(name, repeats, bootstrap, known_delay, refit, duration, fs, every, static=None,
         negative_d=False, noise="encoder", phi=0.8, noise_std=1.0, no_bootstrap=False,
-        fit_static="auto", noise_model=True):
+        fit_static="auto", noise_model=True, workers=1):
     truth, grid, quantum = _plant(name, negative_d)
     exact = _exact_campaign(truth, grid, duration, fs, static)
     delay = truth["delay"] if known_delay else None
@@ -135,44 +196,30 @@ def run(name, repeats, bootstrap, known_delay, refit, duration, fs, every, stati
     times = {"peaks": 0.0, "oe": 0.0}
     failures = {"peaks": 0, "oe": 0}
     extra = {"accurate": {"peaks": 0, "oe": 0}, "structures": {}, "band": 0, "sandwich": 0}
-    for seed in range(repeats):
-        gen = np.random.default_rng(seed)
-        if noise == "encoder":
-            recs = _quantise(exact, quantum, gen)
-        else:
-            recs = _noisy(exact, noise_std * quantum, phi if noise == "ar1" else 0.0, gen)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            t0 = time.process_time()  # processor time: the machine is shared
-            pk = oe = None
-            try:
-                pk = estimate_pho_records(recs, delay=delay, K_known=0.0)
-            except DriveIdError:
-                failures["peaks"] += 1
-                failures["oe"] += 1
-            t1 = time.process_time()
-            if pk is not None:
-                times["peaks"] += t1 - t0
-                try:
-                    oe = estimate_pho_output_error(
-                        recs, delay=delay, K_known=0.0, start=pk, bootstrap=bootstrap,
-                        refit=refit, rng=seed,
-                        quantisation="auto" if noise == "encoder" and not no_bootstrap
-                        else None, static=fit_static, noise_model=noise_model)
-                except DriveIdError:
-                    failures["oe"] += 1
-                times["oe"] += time.process_time() - t0  # includes its peak start
-        for method, est in (("peaks", pk), ("oe", oe)):
-            if est is None:
+    # records do not pickle: the workers inherit the job at the fork
+    _JOB.clear()
+    _JOB.update(exact=exact, quantum=quantum, noise=noise, noise_std=noise_std, phi=phi,
+                delay=delay, bootstrap=bootstrap, refit=refit, no_bootstrap=no_bootstrap,
+                fit_static=fit_static, noise_model=noise_model, fields=fields, truth=truth)
+    pool = None
+    if workers > 1:
+        pool = ProcessPoolExecutor(workers, mp_context=get_context("fork"),
+                                   initializer=_one_thread)
+    outcomes = (pool.map if pool else map)(_one_realisation, range(repeats))
+    for seed, outcome in enumerate(outcomes):
+        for method in ("peaks", "oe"):
+            times[method] += outcome["times"][method]
+            failures[method] += outcome["failed"][method]
+            if outcome["values"][method] is None:
                 continue
-            values[method].append([est.value(f) for f in fields])
-            errors[method].append([est.stderr(f) for f in fields])
-            extra["accurate"][method] += _accepted(truth, est)
-        if oe is not None:
-            d = oe.diagnostics
-            extra["structures"][d["structure"]] = extra["structures"].get(d["structure"], 0) + 1
-            extra["band"] += d["static_band"] is not None
-            extra["sandwich"] += d["adequacy"]["covariance"] == "sandwich"
+            values[method].append(outcome["values"][method])
+            errors[method].append(outcome["errors"][method])
+            extra["accurate"][method] += outcome["accurate"][method]
+        if outcome["structure"] is not None:
+            s = outcome["structure"]
+            extra["structures"][s] = extra["structures"].get(s, 0) + 1
+            extra["band"] += outcome["band"]
+            extra["sandwich"] += outcome["sandwich"]
         done = seed + 1
         if done == repeats or done % every == 0:
             kind = (f"encoder quantum {quantum:.4g}" if noise == "encoder" else
@@ -192,6 +239,8 @@ def run(name, repeats, bootstrap, known_delay, refit, duration, fs, every, stati
                   + f"; oe structure chosen {extra['structures']}, static band reported "
                   f"{extra['band']}/{n_ok['oe']}, sandwich-widened {extra['sandwich']}")
             sys.stdout.flush()
+    if pool is not None:
+        pool.shutdown()
 
 
 def _summary(truth, fields, values, errors, times, failures, repeats):
@@ -238,6 +287,8 @@ def main(argv=None):
     ap.add_argument("--phi", type=float, default=0.8, help="AR(1) coefficient [-]")
     ap.add_argument("--noise-std", type=float, default=1.0,
                     help="noise standard deviation in encoder quanta [-]")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="processes (one BLAS thread each); the same seeds whatever N")
     args = ap.parse_args(argv)
     repeats = 10 if args.quick else args.repeats
     ratios = [float(v) for v in args.static.split(",") if v.strip()] or [None]
@@ -247,7 +298,7 @@ def main(argv=None):
                 args.duration, args.fs, args.every, static=ratio, negative_d=args.negative_d,
                 noise=args.noise, phi=args.phi, noise_std=args.noise_std,
                 no_bootstrap=args.no_bootstrap, fit_static=args.fit_static,
-                noise_model=not args.white_noise)
+                noise_model=not args.white_noise, workers=args.workers)
             sys.stdout.flush()
 
 
