@@ -123,3 +123,19 @@ def test_identify_drive_resamples_a_jittered_clock_and_says_so(tmp_path):
     # far below anything that moves J; 1e-3 leaves room for the interpolated velocity
     assert data["parameters"]["body1.J"]["value"] == pytest.approx(0.0115355, rel=1e-3)
 
+
+
+def test_identify_drive_refuses_a_fit_over_its_step_budget_at_once(tmp_path):
+    # issue 28: a contact of k = 1e15 between bodies of 1e-6 kg·m² needs a 4.5e-12 s step;
+    # before, the fit crawled silently past 100 s; now the estimate refuses it before work
+    config, rec = _record(tmp_path)
+    stiff = tmp_path / "stiff.toml"
+    stiff.write_text("[[body]]\nJ = 1e-6\nfk_mean = 0.01\n[[body]]\nJ = 1e-6\nfk_mean = 0.01\n"
+                     "[[link]]\ntype = \"backlash\"\nk = 1e15\ngap_plus = 0.001\n"
+                     "gap_minus = 0.001\n[run]\nx0 = [0.1, 0.0]\nv0 = [0.0, 0.0]\n")
+    result = CliRunner().invoke(cli, ["identify", "drive", str(stiff), str(rec), "--estimate",
+                                      "body1.J"])
+    assert result.exit_code == 2, result.output
+    line = result.output.strip()
+    assert line.startswith("error:") and "--max-steps" in line and "link 1" in line
+    assert len(line.splitlines()) == 1

@@ -8,8 +8,10 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import PositiveFloat
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options, split_window_spec
+from driveid.identify.drive._drive_model import DEFAULT_FIT_STEPS
 
 __all__ = ["drive_command", "subsystems_command", "read_drive_records"]
 
@@ -59,13 +61,16 @@ def read_drive_records(files, record_opts, *, channels: dict[str, str] | None = 
 @click.option("--segment", type=float, default=0.5, show_default=True,
               help="Open loop: first fit segments of this length [s] (0: whole records).")
 @click.option("--white", is_flag=True, help="White noise only (no AR noise model).")
+@click.option("--max-steps", type=PositiveFloat(max=1e18), default=float(DEFAULT_FIT_STEPS),
+              show_default=True,
+              help="Budget of RK4 steps of the whole fit, estimated before it starts.")
 @click.option("--model-out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Write the identified drive as TOML (simulate drive re-runs it).")
 @record_options
 @output_options
 @clean_errors
 def drive_command(config, files, estimate, channel, input_column, input_body, segment, white,
-                  model_out, record_opts, output_opts):
+                  max_steps, model_out, record_opts, output_opts):
     """Fit the lumped drive of CONFIG (TOML) to motor and load records."""
     from driveid.identify.drive.drive_fit import estimate_drive
     from driveid.io.safe_write import atomic_write_text
@@ -84,7 +89,7 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
     est = estimate_drive(records, params, estimate=names, x0=run.x0, v0=run.v0,
                          input_body=None if input_body is None else input_body - 1,
                          torque=run.torque, units=run.units, noise_model=not white,
-                         segment=segment or None)
+                         segment=segment or None, max_steps=max_steps)
     if model_out is not None:
         atomic_write_text(model_out, est.diagnostics["model_toml"],
                           overwrite=output_opts.overwrite)

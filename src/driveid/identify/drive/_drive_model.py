@@ -506,6 +506,58 @@ class DriveProblem:
         return (len(self.channels), self.record.t.size, z.size)
 
 
+#: Simulations a fit typically runs per unknown (measured 40-460: the two-body open-loop
+#: speed case and the three-body test bed with its growing horizons), for the cost estimate.
+_SIMS_PER_UNKNOWN = 200
+#: Default budget of RK4 steps of a whole fit: ~150 times the test bed's (6e7), about an
+#: hour on one core; a stiff contact on a light body needs 1e11 per second of record.
+DEFAULT_FIT_STEPS = 10**10
+
+
+def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknowns: int,
+                   max_steps: float | None = DEFAULT_FIT_STEPS) -> float:
+    """Refuse a fit whose simulations would take more RK4 steps than ``max_steps``.
+
+    Parameters
+    ----------
+    params : DriveParams
+        The drive at the start values.
+    records : sequence of DriveRecord
+        The measured runs (their durations [s] and rates [Hz]).
+    n_unknowns : int
+        Parameters and initial states estimated [-].
+    max_steps : float or None
+        Budget of RK4 steps of the whole fit [-]; None: no budget.
+
+    Returns
+    -------
+    float
+        The estimated steps of the fit [-].
+
+    Raises
+    ------
+    ParameterError
+        Over the budget: the message names the steps, the stiffest element and the fix.
+    """
+    from driveid.sim.drive import _duration_words, estimate_drive_cost
+
+    costs = [estimate_drive_cost(params, duration=float(r.t[-1] - r.t[0]), fs=r.fs)
+             for r in records]
+    sims = _SIMS_PER_UNKNOWN * (n_unknowns + 1)
+    steps = float(sims * sum(c.n_steps for c in costs))
+    if max_steps is not None and steps > max_steps:
+        worst = max(costs, key=lambda c: c.n_steps)
+        seconds = sims * sum(c.seconds for c in costs)
+        raise ParameterError(
+            f"identify drive: about {steps:.2g} RK4 steps needed (some {sims} simulations of "
+            f"{worst.n_steps:.2g} steps: a {worst.step:.2g} s step resolves the stiffest mode, "
+            f"{worst.stiffest}, period {worst.period:.2g} s), over the budget of "
+            f"{max_steps:.2g} steps (max_steps, CLI --max-steps), about "
+            f"{_duration_words(seconds)} of work; soften or fix that element in the start "
+            "TOML (lower k, raise J), fit a shorter window (FILE@T0:T1), or raise the budget")
+    return steps
+
+
 def _fmt(value: float) -> str:
     if math.isinf(value):
         return "inf" if value > 0 else "-inf"

@@ -92,9 +92,11 @@ from driveid.errors import IdentificationError, ParameterError
 from driveid.identify.core.estimate import Estimate, Parameter
 from driveid.identify.drive._drive_encoder import _quanta, _quantised
 from driveid.identify.drive._drive_model import (
+    DEFAULT_FIT_STEPS,
     DriveProblem,
     DriveRecord,
     channel_index,
+    check_fit_cost,
     check_names,
     drive_to_toml,
     get_value,
@@ -273,6 +275,7 @@ def estimate_drive(
     segment: float | None = 0.5,
     max_nfev: int = 60,
     parallel: bool = True,
+    max_steps: float | None = DEFAULT_FIT_STEPS,
 ) -> Estimate:
     """Fit the lumped drive's named parameters to measured motor and/or load channels.
 
@@ -315,6 +318,8 @@ def estimate_drive(
         Most residual evaluations of each least-squares pass [-].
     parallel : bool
         Simulate the Jacobian's parameter perturbations in threads.
+    max_steps : float or None
+        Budget of RK4 steps of the whole fit, estimated before it starts [-]; None: none.
 
     Returns
     -------
@@ -328,7 +333,8 @@ def estimate_drive(
     Raises
     ------
     ParameterError
-        Unknown or locked parameter names, a record whose channels name a missing body.
+        Unknown or locked parameter names, a record whose channels name a missing body, a
+        fit over the ``max_steps`` budget.
     IdentificationError
         If a trial drive cannot be simulated or the fit does not converge.
 
@@ -391,6 +397,7 @@ def estimate_drive(
                                      else None)
         if guesses:
             base, _, _ = with_values(start, np.zeros(nb), np.zeros(nb), guesses)
+    check_fit_cost(base, recs, len(names) + len(free_states) * len(recs), max_steps)
     starts = None
     for fraction in _horizons(recs, segment):
         # growing horizon: the early part of a record holds little accumulated phase error,
