@@ -1,4 +1,4 @@
-"""Coverage and efficiency of the IDIM, forced-response and friction-map fits, every noise class.
+r"""Coverage and efficiency of the IDIM, forced-response and friction-map fits, every noise class.
 
 Issue 24: for each estimator, noise class and quantisation, ``--repeats`` seeded
 realisations are identified and the 95 % intervals ``±1.96 s.e.`` checked against the truth
@@ -37,8 +37,8 @@ differentiated position): a slow speed-controlled staircase, plateaus of 1.5 s a
 (17 s); force ``u = M a + sgn v (Fc± + Fv± |v|)`` with M = 10 kg, Fc+ = 3.5 N, Fc− = 2.5 N,
 Fv+ = 55 N·s/m, Fv− = 45 N·s/m, plus noise of sd 0.5 N on ``u``. Low-pass at 25 Hz (5x the
 speed profile's 5 Hz, the inverse of its transition time); encoder step 1 µm. The bound is
-that of the whole record with M unknown: the map uses the plateaus alone, so its
-efficiency is below 1 by design.
+that of the whole record with M unknown: the map uses the plateaus alone, so an
+efficiency below 1 is expected of it.
 
     python benchmarks/bench_noise_coverage_fits.py --repeats 200 --workers 16   # every cell
     python benchmarks/bench_noise_coverage_fits.py --repeats 20 --estimators idim \
