@@ -6,8 +6,9 @@ The demo system (J = 1, K = 16, c = 0.3 ± 0.1, f_k = 0.07 ± 0.03; released at 
 * ``white``; ``ar0.5``, ``ar0.9``, ``ar0.97`` (AR(1) with that pole);
 * ``lowpass``: white noise through a 4th-order Butterworth low-pass at 5x the mode (3.2 Hz);
 * ``pink``: 1/f-like, the sum of AR(1) processes with poles 0.5, 0.9, 0.99, 0.999;
-* ``mains``: a 50 Hz line of random phase (70 % of the variance) plus white noise;
+* ``mains``: a 50 Hz line of random phase (70 % of the variance) plus white noise
 
+(defined once in ``_noise_classes.py``, shared with ``bench_noise_coverage_fits.py``),
 each without and with an encoder step of 0.01 rad (``+q``; bootstrap error bars).
 Printed per parameter: coverage of the 95 % intervals, efficiency = coloured-noise Cramér–Rao
 variance / observed variance (``free_decay_crlb(noise_ar=...)`` with a long AR fit of the
@@ -25,10 +26,10 @@ import time
 import warnings
 
 import numpy as np
-from scipy.signal import butter, lfilter
+from _noise_classes import CLASSES, noise_ar
+from _noise_classes import noise as noise_of_class
 
 from driveid.errors import DriveIdError
-from driveid.identify.core._noise import fit_noise_model
 from driveid.identify.crlb import free_decay_crlb
 from driveid.identify.free_decay.output_error import estimate_output_error
 from driveid.sim import OscillatorParams, simulate_free_decay
@@ -36,48 +37,17 @@ from driveid.sim import OscillatorParams, simulate_free_decay
 P = OscillatorParams(J=1.0, K=16.0, c_mean=0.3, c_delta=0.1, fk_mean=0.07, fk_delta=0.03)
 TRUTH = {"c_mean": 0.3, "c_delta": 0.1, "fk_mean": 0.07, "fk_delta": 0.03, "K": 16.0}
 FS, DURATION, X0, SIGMA, QUANTUM = 200.0, 10.0, 1.0, 0.01, 0.01
-CLASSES = ["white", "ar0.5", "ar0.9", "ar0.97", "lowpass", "pink", "mains"]
+LOWPASS_HZ = 5 * 4.0 / (2 * math.pi)  # 5x the mode omega0 = 4 rad/s: 3.2 Hz
 
 
 def noise(kind: str, n: int, rng: np.random.Generator) -> np.ndarray:
-    """Stationary noise of the class, scaled to SIGMA [rad]."""
-    burn = 20_000
-    w = rng.standard_normal(n + burn)
-    if kind == "white":
-        e = w
-    elif kind.startswith("ar"):
-        e = lfilter([1.0], [1.0, -float(kind[2:])], w)
-    elif kind == "lowpass":
-        b, a = butter(4, 5 * 4.0 / (2 * math.pi) / (FS / 2))
-        e = lfilter(b, a, w)
-    elif kind == "pink":
-        e = sum(lfilter([math.sqrt(1 - p * p)], [1.0, -p], rng.standard_normal(n + burn))
-                for p in (0.5, 0.9, 0.99, 0.999))
-    elif kind == "mains":
-        t = np.arange(n + burn) / FS
-        e = math.sqrt(2 * 0.7) * np.sin(2 * math.pi * 50.0 * t + rng.uniform(0, 2 * math.pi)) \
-            + math.sqrt(0.3) * w
-    else:
-        raise ValueError(kind)
-    e = e[burn:]
-    return SIGMA * e / math.sqrt(_variance(kind))
-
-
-def _variance(kind: str) -> float:
-    """Stationary variance of the unscaled class (by simulation, once)."""
-    if kind not in _VAR:
-        _VAR[kind] = 1.0
-        e = noise(kind, 400_000, np.random.default_rng(99)) / SIGMA
-        _VAR[kind] = float(np.var(e))
-    return _VAR[kind]
-
-
-_VAR: dict[str, float] = {}
+    """Stationary noise of the class, scaled to SIGMA [rad]; low-pass at 5x the mode."""
+    return noise_of_class(kind, n, rng, fs=FS, sigma=SIGMA, lowpass_hz=LOWPASS_HZ)
 
 
 def bound(kind: str) -> dict[str, float]:
     """Coloured-noise Cramér–Rao sd: the true spectrum as a long AR fit (orders <= 40)."""
-    ar = fit_noise_model(noise(kind, 200_000, np.random.default_rng(7)), max_order=40).ar
+    ar = noise_ar(kind, fs=FS, lowpass_hz=LOWPASS_HZ)
     return free_decay_crlb(P, fs=FS, duration=DURATION, x0=X0, noise_std=SIGMA,
                            noise_ar=ar or None)
 

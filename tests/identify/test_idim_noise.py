@@ -147,7 +147,7 @@ def test_band_limited_noise_keeps_the_ordinary_fit_with_ar_covariance():
     assert not any("not white" in w for w in est.warnings)
     for k, h in hits.items():
         # 100 repeats: binomial s.d. 2.2 %; 0.88 is 3 s.d. below 95 % (white-noise bars
-        # cover ~45 % here, see benchmarks/bench_noise_coverage_idim.py)
+        # cover ~45 % here, docs/validation.md: the 25 Hz low-pass rows)
         assert h / n >= 0.88, (k, h / n)
 
 

@@ -27,7 +27,7 @@ from driveid.errors import IdentificationError, ParameterError
 from driveid.identify.free_decay._free_response import GLOBAL_NAMES, kinetic_stop_count, response
 from driveid.identify.free_decay.output_error import _physical_jacobian, physical_parameters
 
-__all__ = ["drive_crlb", "free_decay_crlb", "required_duration"]
+__all__ = ["drive_crlb", "free_decay_crlb", "regression_crlb", "required_duration"]
 
 _PHYSICAL = ("J", "K", "c_mean", "c_delta", "fk_mean", "fk_delta")
 
@@ -125,20 +125,7 @@ def free_decay_crlb(
     _, jac, _ = response(t, base, float(x0), 0.0, max(int(n_half), 1))
     if drift:
         jac = np.column_stack([jac, t])
-    if noise_ar is not None and len(noise_ar):
-        a = np.concatenate([[1.0], -np.asarray(noise_ar, float)])
-        if np.max(np.abs(np.roots(a))) >= 1.0:
-            raise ParameterError("noise_ar must describe a stationary AR process (all poles "
-                                 "inside the unit circle)")
-        # σ_w² = γ₀ / Σ h_k² with h the impulse response of 1/A(q)
-        pulse = np.zeros(200_000)
-        pulse[0] = 1.0
-        h = lfilter([1.0], a, pulse)
-        sigma_w2 = noise_std**2 / float(h @ h)
-        jw = lfilter(a, [1.0], jac, axis=0)[a.size - 1:]
-        fisher = jw.T @ jw / sigma_w2
-    else:
-        fisher = jac.T @ jac / noise_std**2
+    fisher = _fisher(jac, noise_std, noise_ar)
     try:
         cov = np.linalg.inv(fisher)
     except np.linalg.LinAlgError:
@@ -153,6 +140,99 @@ def free_decay_crlb(
     out = {n: float(math.sqrt(max(cov[i, i], 0.0))) for i, n in enumerate(GLOBAL_NAMES)}
     out.update({n: float(math.sqrt(max(cov_phys[i, i], 0.0))) for i, n in enumerate(free)})
     return out
+
+
+def _fisher(jac: np.ndarray, noise_std: float, noise_ar: Sequence[float] | None) -> np.ndarray:
+    """Fisher information ``J_wᵀJ_w/σ_w²`` of one record under stationary AR noise."""
+    if noise_ar is None or not len(noise_ar):
+        return jac.T @ jac / noise_std**2
+    a = np.concatenate([[1.0], -np.asarray(noise_ar, float)])
+    if np.max(np.abs(np.roots(a))) >= 1.0:
+        raise ParameterError("noise_ar must describe a stationary AR process (all poles "
+                             "inside the unit circle)")
+    # σ_w² = γ₀ / Σ h_k² with h the impulse response of 1/A(q)
+    pulse = np.zeros(200_000)
+    pulse[0] = 1.0
+    h = lfilter([1.0], a, pulse)
+    sigma_w2 = noise_std**2 / float(h @ h)
+    jw = lfilter(a, [1.0], jac, axis=0)[a.size - 1:]
+    return jw.T @ jw / sigma_w2
+
+
+def regression_crlb(
+    jacobians: Sequence[np.ndarray],
+    *,
+    noise_std: float,
+    noise_ar: Sequence[float] | None = None,
+) -> np.ndarray:
+    r"""Cramér–Rao covariance of parameters that enter records through known sensitivities.
+
+    For independent records ``y_r = f_r(q) + e_r`` with stationary Gaussian noise ``e_r``
+    (white, or AR with coefficients ``noise_ar``), any unbiased estimator of ``q`` has a
+    covariance of at least ``F⁻¹``, ``F = Σ_r J_rᵀ Σ⁻¹ J_r`` with ``J_r = ∂f_r/∂q`` at the
+    truth. This covers the linear inverse model (``J_r`` the regressor matrix: inertia,
+    friction and offset columns of the noise-free motion) as well as any nonlinear model
+    through its Jacobian (a steady sine response, a friction map).
+
+    Parameters
+    ----------
+    jacobians : sequence of ndarray, each shape (n_r, p)
+        Sensitivity of each record's samples to the ``p`` parameters [record unit per
+        parameter unit]; every record has ``n_r > p`` samples, and more than the AR order.
+    noise_std : float
+        Standard deviation of the noise on every record [record unit]; > 0.
+    noise_ar : sequence of float, optional
+        AR coefficients ``a_1 … a_p`` [-] of ``e_t = Σ a_j e_{t-j} + w_t``; ``noise_std``
+        is the standard deviation of ``e`` itself. Whittle's form, as in
+        :func:`free_decay_crlb`: each record prewhitened by ``A(q)``, its first p samples
+        conditioned on.
+
+    Returns
+    -------
+    ndarray, shape (p, p)
+        The bound covariance ``F⁻¹`` [parameter units squared]; the square roots of its
+        diagonal are the bound standard deviations.
+
+    Raises
+    ------
+    ParameterError
+        A non-positive ``noise_std``, Jacobians of different widths or too few rows, or a
+        non-stationary ``noise_ar``.
+    IdentificationError
+        If the Fisher information is singular (the records cannot separate the parameters).
+
+    Notes
+    -----
+    With white noise this is the ordinary least-squares covariance ``σ²(JᵀJ)⁻¹``, which is
+    what the thesis's inverse-model and sine-fit error bars (2.179) estimate; with coloured
+    noise it is the generalised least-squares covariance, which no unbiased estimator beats.
+
+    Examples
+    --------
+    >>> ones = np.ones((1001, 1))            # the mean of 1001 samples
+    >>> float(regression_crlb([ones], noise_std=2.0)[0, 0])  # σ²/n
+    0.003996003996003996
+    """
+    if not (isinstance(noise_std, (int, float)) and math.isfinite(noise_std)
+            and noise_std > 0):
+        raise ParameterError(f"noise_std must be a positive number; got {noise_std!r}")
+    mats = [np.atleast_2d(np.asarray(j, float)) for j in jacobians]
+    if not mats:
+        raise ParameterError("regression_crlb needs at least one record's Jacobian; got none")
+    p = mats[0].shape[1]
+    order = 0 if noise_ar is None else len(noise_ar)
+    for j in mats:
+        if j.ndim != 2 or j.shape[1] != p or j.shape[0] <= max(p, order):
+            raise ParameterError(
+                f"every Jacobian must be (n_r, {p}) with n_r > {max(p, order)} (parameters "
+                f"and AR order); got shape {j.shape}")
+    fisher = sum(_fisher(j, float(noise_std), noise_ar) for j in mats)
+    try:
+        return np.linalg.inv(fisher)
+    except np.linalg.LinAlgError:
+        raise IdentificationError(
+            "the Fisher information is singular: the records cannot separate the "
+            "parameters") from None
 
 
 def required_duration(
