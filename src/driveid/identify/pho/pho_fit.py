@@ -99,6 +99,7 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -124,6 +125,8 @@ STRUCTURES = ("static = kinetic", "static band free")
 _ROUNDING_RMS = 1.5
 #: Residual rms above this multiple of the noise at rest is called a misfit [-].
 _MISFIT = 3.0
+#: Restarts of a misfit campaign: c_mean at these multiples of its start [-].
+_RESTART_C = (0.75, 0.5, 1.5)
 
 
 def _units(units: str) -> dict[str, str]:
@@ -414,7 +417,69 @@ def estimate_pho_output_error(
         ``quantisation``, ``static`` or ``noise_model``.
     RecordError
         For a record not sampled uniformly from its release.
+
+    Notes
+    -----
+    A fit whose residual is more than 3 times the noise the runs show at rest
+    (``diagnostics["misfit_ratio"]``) ended in a wrong basin or misses an effect. It is
+    restarted with ``c_mean`` from 0.75, 0.5 and 1.5 times its start (the peak analysis's
+    ``c_mean`` is the start most often off: +33 % under AR(1) noise on the one test-bed
+    campaign of 200 that ended 16 % off, which from 0.75× converges to 0.4 %), and the
+    restart with the lowest residual is kept; ``diagnostics["restart"]`` says which.
     """
+    options = dict(delay=delay, K_known=K_known, units=units, quantisation=quantisation,
+                   bootstrap=bootstrap, refit=refit, rng=rng, start=start,
+                   fit_release=fit_release, progress=progress, static=static,
+                   noise_model=noise_model)
+    est = _fit_campaign(records, **options)
+    misfit = est.diagnostics["misfit_ratio"]
+    if not misfit > _MISFIT:
+        return est
+    if start is None:
+        start = estimate_pho_records(records, delay=delay, K_known=K_known, units=units)
+    tried = {"first": misfit}
+    best, how = est, None
+    for factor in _RESTART_C:
+        params = dict(start.params)
+        params["c_mean"] = dataclasses.replace(params["c_mean"],
+                                               value=factor * start.value("c_mean"))
+        try:
+            again = _fit_campaign(records, **{**options,
+                                              "start": dataclasses.replace(start, params=params)})
+        except IdentificationError:
+            continue
+        tried[f"c_mean x{factor:g}"] = again.diagnostics["misfit_ratio"]
+        if again.diagnostics["misfit_ratio"] < best.diagnostics["misfit_ratio"]:
+            best, how = again, factor
+        if not best.diagnostics["misfit_ratio"] > _MISFIT:
+            break
+    diagnostics = {**best.diagnostics, "restart": {"c_mean_factor": how, "misfit": tried}}
+    best = dataclasses.replace(best, diagnostics=diagnostics)
+    if how is None:
+        return best
+    return best.with_warnings(
+        f"the fit from the start values ended with residuals {misfit:.3g} times the noise at "
+        f"rest (a wrong basin); restarted with c_mean at {how:g} times its start, which "
+        f"fits to {best.diagnostics['misfit_ratio']:.3g} times the noise and is reported")
+
+
+def _fit_campaign(
+    records: Sequence[Record],
+    *,
+    delay: float | None = None,
+    K_known: float | None = None,
+    units: str | None = None,
+    quantisation: float | str | None = "auto",
+    bootstrap: int = 50,
+    refit: bool = False,
+    rng: np.random.Generator | int | None = None,
+    start: Estimate | None = None,
+    fit_release: bool | None = None,
+    progress: Callable[[int, int], Any] | None = None,
+    static: str = "auto",
+    noise_model: bool = True,
+) -> Estimate:
+    """Fit the campaign once from ``start`` (see :func:`estimate_pho_output_error`)."""
     records = list(records)
     if not records:
         raise IdentificationError(
