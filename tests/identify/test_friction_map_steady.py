@@ -56,3 +56,29 @@ def test_friction_map_from_first_order_steps():
     # the settled points lie on the line to the noise: 2 % covers the settling residue
     assert fm.estimate.value("Fc_plus") == pytest.approx(0.5, rel=0.02)
     assert fm.estimate.value("Fv_minus") == pytest.approx(0.02, rel=0.02)
+
+
+def test_plateau_force_error_bar_is_honest_under_low_pass_noise():
+    # issue 24: force noise through a 4th-order 25 Hz low-pass at 500 Hz on constant-speed
+    # plateaus; the lag-1 (AR(1)) effective count made the mean's s.e. 3x too wide
+    # (benchmarks/bench_noise_coverage_fits.py: friction-map sd/se 0.31-0.35); the AR(p)
+    # long-run variance is right to a few %. 150 plateaus: the sd of an sd estimate is
+    # 1/sqrt(2·150) = 6 %, so [0.8, 1.25] is ~3.5 sd wide on each side
+    from scipy.signal import butter, lfilter
+
+    from driveid.identify.friction.friction_map import _plateau_mean
+    from driveid.signal.steady import segment_mean
+
+    rng = np.random.default_rng(11)
+    b, a = butter(4, 25.0 / 250.0)
+    means, se_new, se_old = [], [], []
+    for _ in range(150):
+        n = int(rng.integers(500, 751))
+        y = 3.0 + lfilter(b, a, rng.standard_normal(n + 2000))[2000:]
+        m, s = _plateau_mean(y)
+        means.append(m)
+        se_new.append(s)
+        se_old.append(segment_mean(y)[1])
+    sd = float(np.std(means))
+    assert 0.8 < sd / np.mean(se_new) < 1.25
+    assert sd / np.mean(se_old) < 0.5  # the old error bar, for contrast

