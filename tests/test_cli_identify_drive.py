@@ -139,3 +139,20 @@ def test_identify_drive_refuses_a_fit_over_its_step_budget_at_once(tmp_path):
     line = result.output.strip()
     assert line.startswith("error:") and "--max-steps" in line and "link 1" in line
     assert len(line.splitlines()) == 1
+
+
+def test_identify_drive_reports_progress_against_its_cost_estimate(tmp_path):
+    from driveid.identify.drive.drive_fit import estimate_drive
+    from driveid.identify.drive.records import read_drive_record
+    from driveid.sim.config import load_drive_config
+
+    config, rec = _record(tmp_path)
+    params, run = load_drive_config(config)
+    calls = []
+    est = estimate_drive([read_drive_record(rec, n_bodies=1)], params,
+                         estimate=["body1.J"], x0=run.x0, v0=run.v0,
+                         progress=lambda done, expected: calls.append((done, expected)))
+    done = [d for d, _ in calls]
+    # every batch of simulations is counted, in order, against one estimate made up front
+    assert done == sorted(done) and done[-1] >= est.diagnostics["n_simulations"]
+    assert len({e for _, e in calls}) == 1 and calls[0][1] > 0

@@ -86,10 +86,20 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
         ensure_writable(model_out, overwrite=output_opts.overwrite)
     records = read_drive_records(files, record_opts, channels=_pairs(channel, "--channel"),
                                  input_column=input_column, n_bodies=params.n_bodies)
-    est = estimate_drive(records, params, estimate=names, x0=run.x0, v0=run.v0,
-                         input_body=None if input_body is None else input_body - 1,
-                         torque=run.torque, units=run.units, noise_model=not white,
-                         segment=segment or None, max_steps=max_steps)
+    from driveid.commands._progress import progress_bar
+
+    def advance(done, expected):
+        # the fit's length is estimated before it starts: the bar grows past the estimate
+        bar.total = max(expected, done)
+        bar.update(done - bar.n)
+
+    with progress_bar(1, "drive fit: simulations (expected count estimated)",
+                      quiet=output_opts.quiet, unit="sim") as bar:
+        est = estimate_drive(records, params, estimate=names, x0=run.x0, v0=run.v0,
+                             input_body=None if input_body is None else input_body - 1,
+                             torque=run.torque, units=run.units, noise_model=not white,
+                             segment=segment or None, max_steps=max_steps,
+                             progress=advance)
     if model_out is not None:
         atomic_write_text(model_out, est.diagnostics["model_toml"],
                           overwrite=output_opts.overwrite)

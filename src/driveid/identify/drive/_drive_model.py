@@ -351,7 +351,7 @@ class DriveProblem:
     def __init__(self, base: DriveParams, x0: np.ndarray, v0: np.ndarray,
                  names: Sequence[str], scale: np.ndarray, record: DriveRecord,
                  input_body: int | None, torque: np.ndarray | None = None,
-                 parallel: bool = True) -> None:
+                 parallel: bool = True, progress: Any = None) -> None:
         self.base, self.x0, self.v0 = base, np.asarray(x0, float), np.asarray(v0, float)
         self.names, self.scale = list(names), np.asarray(scale, float)
         self.record = record
@@ -364,6 +364,7 @@ class DriveProblem:
             grid[input_body] += record.u
         self.torque = grid
         self.parallel = parallel
+        self.progress = progress  # called with the simulations of each batch
         self.fs = record.fs
         self.duration = (n - 1) / self.fs
         self.n_sims = 0
@@ -395,6 +396,8 @@ class DriveProblem:
                                       "start nearer the truth or fix the contact "
                                       "parameters") from None
         self.n_sims += len(built)
+        if self.progress is not None:
+            self.progress(len(built))
         n = self.record.t.size
         out = []
         for res in results:
@@ -515,7 +518,7 @@ DEFAULT_FIT_STEPS = 10**10
 
 
 def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknowns: int,
-                   max_steps: float | None = DEFAULT_FIT_STEPS) -> float:
+                   max_steps: float | None = DEFAULT_FIT_STEPS) -> int:
     """Refuse a fit whose simulations would take more RK4 steps than ``max_steps``.
 
     Parameters
@@ -531,8 +534,8 @@ def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknow
 
     Returns
     -------
-    float
-        The estimated steps of the fit [-].
+    int
+        The simulations the fit is expected to run [-] (for a progress bar).
 
     Raises
     ------
@@ -555,7 +558,18 @@ def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknow
             f"{max_steps:.2g} steps (max_steps, CLI --max-steps), about "
             f"{_duration_words(seconds)} of work; soften or fix that element in the start "
             "TOML (lower k, raise J), fit a shorter window (FILE@T0:T1), or raise the budget")
-    return steps
+    return sims
+
+
+def counting(progress: Any, expected: int) -> Any:
+    """Turn ``progress(done, expected)`` into a callback that takes each batch's count."""
+    done = [0]
+
+    def tick(k: int) -> None:
+        done[0] += k
+        progress(done[0], expected)
+
+    return tick
 
 
 def _fmt(value: float) -> str:

@@ -82,7 +82,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -98,6 +99,7 @@ from driveid.identify.drive._drive_model import (
     channel_index,
     check_fit_cost,
     check_names,
+    counting,
     drive_to_toml,
     get_value,
     lower_bound,
@@ -276,6 +278,7 @@ def estimate_drive(
     max_nfev: int = 60,
     parallel: bool = True,
     max_steps: float | None = DEFAULT_FIT_STEPS,
+    progress: Callable[[int, int], Any] | None = None,
 ) -> Estimate:
     """Fit the lumped drive's named parameters to measured motor and/or load channels.
 
@@ -320,6 +323,9 @@ def estimate_drive(
         Simulate the Jacobian's parameter perturbations in threads.
     max_steps : float or None
         Budget of RK4 steps of the whole fit, estimated before it starts [-]; None: none.
+    progress : callable, optional
+        ``progress(done, expected)`` after each batch of simulations: simulations run so
+        far and the number expected before the fit started (an estimate) [-].
 
     Returns
     -------
@@ -397,20 +403,21 @@ def estimate_drive(
                                      else None)
         if guesses:
             base, _, _ = with_values(start, np.zeros(nb), np.zeros(nb), guesses)
-    check_fit_cost(base, recs, len(names) + len(free_states) * len(recs), max_steps)
+    expected = check_fit_cost(base, recs, len(names) + len(free_states) * len(recs), max_steps)
+    tick = None if progress is None else counting(progress, expected)
     starts = None
     for fraction in _horizons(recs, segment):
         # growing horizon: the early part of a record holds little accumulated phase error,
         # so its objective has few local minima; each stage starts the next
         pieces = [_head(rec, fraction) for rec in recs]
         st = _stage(pieces, base, start, names, free_states, x0, v0, input_body, use_u,
-                    torque, parallel, max_nfev, False, starts, hold=True)
+                    torque, parallel, max_nfev, False, starts, hold=True, progress=tick)
         theta = st["sol"].x * st["scale_all"]
         shared = dict(zip(names, theta[:len(names)], strict=True))
         base, _, _ = with_values(base, np.zeros(nb), np.zeros(nb), shared)
         starts = _states_of(st, theta, len(names))
     st = _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, torque,
-                parallel, max_nfev, noise_model, starts)
+                parallel, max_nfev, noise_model, starts, progress=tick)
     sol, fit, problems, index = st["sol"], st["fit"], st["problems"], st["index"]
     all_names, scale_all, states0 = st["all_names"], st["scale_all"], st["states0"]
     lower, upper, noise_info = st["lower"], st["upper"], st["noise_info"]
@@ -509,7 +516,7 @@ def _states_of(st: dict, theta: np.ndarray, n_shared: int) -> list:
 
 
 def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, torque,
-           parallel, max_nfev, noise_model, starts=None, hold=False) -> dict:
+           parallel, max_nfev, noise_model, starts=None, hold=False, progress=None) -> dict:
     """One least-squares fit of shared parameters and per-record states (weighted twice)."""
     nb = start.n_bodies
     zero = np.zeros(nb)
@@ -540,7 +547,7 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
             z0.append(value / s)
         problems.append(DriveProblem(base, sx, sv, local, np.array(scale), rec,
                                      input_body if use_u else None, torque=torque,
-                                     parallel=parallel))
+                                     parallel=parallel, progress=progress))
         index.append(np.array(idx))
     z0 = np.array(z0)
     scale_all = np.concatenate([scale_shared] + [p.scale[len(names):] for p in problems])
