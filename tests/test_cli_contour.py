@@ -81,3 +81,23 @@ def test_refuses_overwrite_and_bad_inputs(workdir):
     res = runner.invoke(cli, ["identify", "contour", str(workdir / "circle.csv"), "--config",
                               str(workdir / "axes.toml"), "--position", "x"])
     assert res.exit_code == 2 and "reads its columns by name" in res.output
+
+
+@pytest.mark.parametrize("change, words", [
+    # issue 28: a 10 MHz controller is 3.2e7 Python calls (~19 min): refused before work
+    (("rate = 2000.0 ", "rate = 1e7 "), "--max-periods"),
+    # a circle of 1e6 revolutions would need ~1 TB: refused before allocation
+    (("revolutions = 1.0", "revolutions = 1e6"), "memory"),
+])
+def test_simulate_contour_refuses_a_run_beyond_budget_or_memory(tmp_path, change, words):
+    config = tmp_path / "axes.toml"
+    text = EXAMPLE.read_text()
+    assert change[0] in text
+    config.write_text(text.replace(*change))
+    res = CliRunner().invoke(cli, ["simulate", "contour", str(config), "--out",
+                                   str(tmp_path / "c.csv")])
+    assert res.exit_code == 2, res.output
+    line = res.output.strip()
+    assert line.startswith("error: simulate contour") and words in line
+    assert "[path] revolutions" in line and len(line.splitlines()) == 1
+    assert not (tmp_path / "c.csv").exists()

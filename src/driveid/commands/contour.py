@@ -9,6 +9,7 @@ import click
 import numpy as np
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import PositiveFloat
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
 from driveid.errors import ConfigError
@@ -77,9 +78,11 @@ def write_contour_csv(columns: dict, path: str | Path, *, overwrite: bool = Fals
               help="Seed of the measurement noise; overrides [noise] seed.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the radial error, glitches and reversal spikes as JSON.")
+@click.option("--max-periods", type=PositiveFloat(max=1e18), default=1e7, show_default=True,
+              help="Budget of control periods (Python controller calls) of a run, all axes.")
 @click.option("--overwrite", is_flag=True, help="Overwrite an existing output file.")
 @clean_errors
-def simulate_contour_command(config, out, compensate, seed, as_json, overwrite):
+def simulate_contour_command(config, out, compensate, seed, as_json, max_periods, overwrite):
     """Circular contour test (ball bar) of two feed axes under PID control."""
     import dataclasses
 
@@ -106,7 +109,7 @@ def simulate_contour_command(config, out, compensate, seed, as_json, overwrite):
             raise ConfigError("--compensate: expected a driveid-result JSON object; got "
                               f"{type(data).__name__}")
         comp = compensation_from_estimate(data, config=cfg)
-    result = simulate_contour(cfg, compensation=comp)
+    result = simulate_contour(cfg, compensation=comp, max_periods=max_periods)
     summary = result.summary()
     if comp is not None:
         table = {"with": summary["radial_error"]}
@@ -114,7 +117,8 @@ def simulate_contour_command(config, out, compensate, seed, as_json, overwrite):
                               ("friction_high", 1.2)):
             other = simulate_contour(cfg, compensation=None if factor is None else
                                      compensation_from_estimate(data, friction=factor,
-                                                                config=cfg))
+                                                                config=cfg),
+                                     max_periods=max_periods)
             table[label] = other.summary()["radial_error"]
         table["peak_ratio"] = table["without"]["peak"] / max(table["with"]["peak"], 1e-300)
         summary["compensation"] = {"axes": {a: dataclasses.asdict(c) for a, c in comp.items()},
