@@ -86,3 +86,23 @@ def test_reading_plus_output_error_is_bounded(decay_file):
     # n x 7 Jacobian would add 2.3x, and the old code kept one per candidate stop count.
     # 3.7x measured; 4.5x leaves margin.
     assert peak < 4.5 * RECORD_BYTES, f"output error peaked at {peak / RECORD_BYTES:.2f}x"
+
+
+def test_a_campaign_larger_than_the_free_disk_is_refused_before_writing(tmp_path, monkeypatch):
+    # issue 28: 18 runs of 2000 s at 10 kHz is ~27 GB of CSV; with 1 GB free the campaign is
+    # refused before a run is simulated or a file written (free space faked: the test
+    # machine's disk is what it is)
+    import shutil
+    from collections import namedtuple
+
+    from driveid.errors import ParameterError
+    from driveid.experiment import SimulatedPlant, run_pho_campaign
+    from driveid.sim.presets import preset
+
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(shutil, "disk_usage", lambda path: usage(2e9, 1e9, 1e9))
+    plant = SimulatedPlant(preset("testbed-a"))
+    with pytest.raises(ParameterError, match="more than the 954 MiB free"):
+        run_pho_campaign(plant, P_values=[2.0, 3.0, 4.0], D_start=0.03, D_step=0.01, n_D=3,
+                         x0=1.0, duration=2000.0, fs=1e4, out_dir=tmp_path / "c")
+    assert not (tmp_path / "c").exists()

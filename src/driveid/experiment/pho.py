@@ -42,7 +42,12 @@ import numpy as np
 
 from driveid.errors import DriveIdError, OverwriteError, ParameterError
 from driveid.experiment.plant import Plant
-from driveid.io.consistency import MAX_CAMPAIGN_RUNS, check_allocation, check_count
+from driveid.io.consistency import (
+    MAX_CAMPAIGN_RUNS,
+    check_allocation,
+    check_count,
+    check_disk,
+)
 from driveid.io.files import read_record, write_record
 from driveid.io.manifest import (
     MANIFEST_NAME,
@@ -433,6 +438,10 @@ def run_pho_campaign(
                      _BYTES_PER_SAMPLE_KEPT,
                      f"{n_planned} run(s) of duration {duration:g} s at fs {fs:g} Hz",
                      override="shorten --duration, lower --fs or split the grid")
+    # a CSV line of t, x, u at 17 digits is ~75 B; the binary formats hold 3 doubles
+    check_disk(n_planned * n_samples * (75 if suffix == ".csv" else 24), out_dir,
+               f"{n_planned} run(s) of {duration:g} s at {fs:g} Hz",
+               override="shorten --duration, lower --fs, split the grid or write elsewhere")
     old = None
     if os.path.lexists(manifest_path):
         if not resume:

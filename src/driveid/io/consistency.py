@@ -21,6 +21,7 @@ import os
 import sys
 import warnings
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,6 +38,7 @@ __all__ = [
     "available_memory",
     "check_allocation",
     "check_count",
+    "check_disk",
     "MAX_JSON_DEPTH",
 ]
 
@@ -359,6 +361,41 @@ def check_allocation(n_samples: float, bytes_per_sample: float, what: str, *,
             f"{bytes_per_sample:g} B), more than the {_fmt_bytes(limit)} of memory available; "
             f"{hint}")
     return int(n_samples)
+
+
+def check_disk(n_bytes: float, folder: str | Path, what: str, *, override: str) -> None:
+    """Refuse a write that would not fit on the disk holding ``folder``, before writing.
+
+    Parameters
+    ----------
+    n_bytes : float
+        Bytes the request will write, an estimate [B].
+    folder : str or Path
+        Where it writes (need not exist yet: its nearest existing parent is measured).
+    what : str
+        What is written, in the user's terms.
+    override : str
+        How the user makes the request smaller.
+
+    Raises
+    ------
+    ParameterError
+        If ``n_bytes`` exceeds the free space there.
+
+    Examples
+    --------
+    >>> check_disk(1000, ".", "a test", override="write less")
+    """
+    import shutil
+
+    where = Path(folder).absolute()
+    while not where.exists() and where != where.parent:
+        where = where.parent
+    free = shutil.disk_usage(where).free
+    if n_bytes > free:
+        raise ParameterError(
+            f"{what} would write about {_fmt_bytes(n_bytes)}, more than the "
+            f"{_fmt_bytes(free)} free on the disk of {where}; {override}")
 
 
 #: Most runs a campaign plans without an explicit override (CLI ``--max-runs``): the
