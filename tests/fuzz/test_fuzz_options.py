@@ -7,6 +7,8 @@ memory: each must now be one ``error:`` line naming the option, exit 2, nothing 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from tests.fuzz.conftest import snapshot
@@ -69,9 +71,17 @@ def test_bad_numeric_option_is_one_error_line(run, tmp_path, good_record, words,
     (("pho", "run", "--out", "c", "--P-range", "1", "1", "6000"), "limit of 10000"),
     (("identify", "wavelet", "{record}", "--omega-c", "1e9"), "at most"),
     (("pho", "analyse", ".", "--delay", "1e6"), "at most"),
+    # issue 28: 1.2e7 records (~700 GB) and dates past year 9999 ran silently
+    (("fleet", "simulate", "f", "--axes", "1000000"), "limit of 100000"),
+    (("fleet", "simulate", "f", "--axes", "2", "--months", "100000"), "year 9999"),
+    (("simulate", "contour", "{contour}", "--out", "c.csv"), "--max-periods"),
 ])
 def test_absurd_sizes_are_refused_before_allocating(run, tmp_path, good_record, args, match):
+    contour = tmp_path / "axes.toml"  # the example circle under a 10 MHz controller
+    example = Path(__file__).resolve().parents[2] / "examples/drive_configs/contour_xy.toml"
+    contour.write_text(example.read_text()
+                       .replace("rate = 2000.0 ", "rate = 1e7 "))
     before = snapshot(tmp_path)
-    out = run(*[a.format(record=good_record) for a in args])
+    out = run(*[a.format(record=good_record, contour=contour) for a in args])
     out.assert_clean_error(match, progress_label="PHO runs")
     assert snapshot(tmp_path) == before

@@ -85,14 +85,23 @@ def fleet_identify_command(patterns, method, mass, stiffness, path_pattern, mach
 @click.option("--faulty", "faulty_fraction", type=float, default=0.1, show_default=True,
               help="Fraction of axes with an injected fault.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option("--max-records", type=click.IntRange(min=1), default=100_000, show_default=True,
+              help="Most records (axes x months) written without this override.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing simulated fleet.")
 @clean_errors
-def fleet_simulate_command(out_dir, n_axes, n_months, faulty_fraction, seed, overwrite):
+def fleet_simulate_command(out_dir, n_axes, n_months, faulty_fraction, seed, max_records,
+                           overwrite):
     """Write a simulated fleet of free decays with known faults to OUT_DIR (and truth.csv)."""
-    from driveid.sim.fleet import simulate_fleet
+    from driveid.sim.fleet import RECORD_BYTES, simulate_fleet
 
+    n = n_axes * n_months
+    if 10_000 < n <= max_records:  # long but within the budget: say so first
+        click.echo(f"simulating {n} records ({n_axes} axes x {n_months} months), about "
+                   f"{n * RECORD_BYTES / 1e9:.2g} GB and {n * 0.02 / 60:.2g} min here",
+                   err=True)
     truth = simulate_fleet(out_dir, n_axes=n_axes, n_months=n_months,
-                           faulty_fraction=faulty_fraction, seed=seed, overwrite=overwrite)
+                           faulty_fraction=faulty_fraction, seed=seed, overwrite=overwrite,
+                           max_records=max_records)
     n_faulty = len({(r["machine"], r["axis"]) for r in truth.rows if r["fault"] != "none"})
     click.echo(f"wrote {len(truth.rows)} records of {n_axes} axes ({n_faulty} faulty) to "
                f"{out_dir}; truth in {out_dir / 'truth.csv'}")
