@@ -25,22 +25,19 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import lfilter
-from scipy.stats import t as student_t
 
 from driveid.identify.core._adequacy import Structure, compare_structures, ljung_box
 from driveid.identify.core._noise import NoiseModel, fit_noise_model, white_noise
-from driveid.identify.core._noise_reml import reml_noise_model, reml_order
-from driveid.identify.core._slow_noise import slow_noise_covariance
 from driveid.identify.core._noise_replicates import (
     linearised_replicates,
     simulate_noise,
     student_widening,
 )
+from driveid.identify.core._slow_noise import slow_noise_covariance
 from driveid.identify.free_decay._free_response import SINK_ROWS, kinetic_stop_count, response
 
 __all__ = ["StreamWhitener", "simulate_noise", "structure_test", "fit_structure",
@@ -52,11 +49,6 @@ DRIFT = "+ drift"
 QUADRATIC = "+ quadratic damping"
 #: Samples the structure test is decimated to [-] (the fits differentiate numerically).
 STRUCTURE_SAMPLES = 4000
-#: How the noise model of a prewhitened fit is corrected for what the fit absorbs.
-NOISE_ESTIMATOR = "reml"
-#: Significance of the slow-noise excess that widens the error bars (0: never) [-].
-SLOW_LEVEL = 0.05
-SLOW_STUDENT = True
 _EFFECTS = {
     DRIFT: ("a slow drift of the measured position (sensor, support or thermal)",
             "driveid identify logdec --drift"),
@@ -496,8 +488,6 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
             jac = problem.model(chosen["p"], chosen["counts"])[1]
             rep = linearised_replicates(model, jac, resid, segments=problem.segments,
                                         whitening=problem.noise)
-            if NOISE_ESTIMATOR.startswith("reml"):
-                rep = _reml_replicates(model, rep, jac, resid, problem.segments)
             model, limit = rep.noise, rep.rss_limit()
             problem.noise_replicates = rep
         if rss > limit * white_rss:
@@ -528,24 +518,6 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
     return candidates, chosen
 
 
-def _reml_replicates(model, rep, jac, resid, segments):
-    """The replicates with the REML model in place of their bias-corrected one."""
-    if NOISE_ESTIMATOR == "reml-bic":
-        model = reml_order(resid, jac, segments=segments)
-    reml = reml_noise_model(model, resid, jac, segments=segments)
-    if reml is model and NOISE_ESTIMATOR == "reml":
-        return rep
-    if reml.order != rep.noise.order:
-        return replace(rep, noise=reml, ar_draws=())
-    shift = np.asarray(reml.ar) - np.asarray(rep.noise.ar)
-    draws = []
-    for d in rep.ar_draws:
-        moved = np.asarray(d) + shift
-        if np.max(np.abs(np.roots(np.concatenate([[1.0], -moved])))) < 1.0 - 1e-6:
-            draws.append(tuple(float(v) for v in moved))
-    return replace(rep, noise=reml, ar_draws=tuple(draws))
-
-
 def noise_model_widening(problem, chosen, cov: np.ndarray) -> np.ndarray:
     """Widen a prewhitened covariance for the sampling error of its AR noise model.
 
@@ -574,22 +546,41 @@ def noise_model_widening(problem, chosen, cov: np.ndarray) -> np.ndarray:
     if factors.size != cov.shape[0]:
         return cov
     problem.widening = factors
-    cov = cov * np.outer(factors, factors)
-    if SLOW_LEVEL > 0:
-        extra, var_extra, info = slow_noise_covariance(
-            jac, _joined_resid(problem, chosen), problem.noise, segments=problem.segments,
-            level=SLOW_LEVEL)
-        problem.slow_excess = info
-        if info["applied"]:
-            cov = cov + extra
-            # Satterthwaite: the added variance rests on a few periodogram ordinates
-            total = np.diag(cov)
-            nu = 2.0 * total ** 2 / np.maximum(var_extra, 1e-300)
-            slow = np.maximum(student_t.ppf(0.975, np.maximum(nu, 1.0)) / 1.959964, 1.0) \
-                if SLOW_STUDENT else np.ones_like(total)
-            info["widening"] = [float(v) for v in slow]
-            cov = cov * np.outer(slow, slow)
-    return cov
+    return slow_noise_widening(problem, chosen, cov * np.outer(factors, factors), jac)
+
+
+def slow_noise_widening(problem, chosen, cov: np.ndarray, jac=None) -> np.ndarray:
+    """Add the covariance of the noise power at the record's slowest frequencies the model misses.
+
+    Parameters
+    ----------
+    problem : output_error._Problem
+        The fit problem with its final noise model; ``slow_excess`` is set to the test.
+    chosen : dict
+        The chosen candidate (``p``, ``counts``).
+    cov : ndarray, shape (k, k)
+        Covariance of the estimate [parameter units²].
+    jac : ndarray, shape (n, k), optional
+        The candidate's Jacobian when already formed [unit per parameter unit].
+
+    Returns
+    -------
+    ndarray, shape (k, k)
+        ``cov + M Σ_extra Mᵀ`` where the excess is significant at
+        :data:`~driveid.identify.core._slow_noise.LEVEL`
+        (:func:`~driveid.identify.core._slow_noise.slow_noise_covariance`); cov itself for
+        white noise (the unweighted fit stays exact), long records and no excess.
+    """
+    if problem.noise.is_white or problem.n > SINK_ROWS:
+        return cov
+    if jac is None:
+        _, jac = problem.model(chosen["p"], chosen["counts"])
+    extra, info = slow_noise_covariance(jac, _joined_resid(problem, chosen), problem.noise,
+                                        segments=problem.segments)
+    problem.slow_excess = info
+    if not info["applied"] or extra.shape != cov.shape:
+        return cov
+    return cov + extra
 
 
 def _joined_resid(problem, candidate):
