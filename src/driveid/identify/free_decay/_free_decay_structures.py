@@ -41,7 +41,7 @@ from driveid.identify.core._slow_noise import slow_noise_covariance
 from driveid.identify.free_decay._free_response import SINK_ROWS, kinetic_stop_count, response
 
 __all__ = ["StreamWhitener", "simulate_noise", "structure_test", "fit_structure",
-           "noise_model_widening",
+           "noise_model_widening", "slow_noise_widening",
            "DRIFT", "QUADRATIC", "BASE"]
 
 BASE = "viscous + Coulomb"
@@ -519,7 +519,7 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
 
 
 def noise_model_widening(problem, chosen, cov: np.ndarray) -> np.ndarray:
-    """Widen a prewhitened covariance for the sampling error of its AR noise model.
+    """Widen a prewhitened covariance for its AR noise model's sampling error and blind spot.
 
     Parameters
     ----------
@@ -534,19 +534,21 @@ def noise_model_widening(problem, chosen, cov: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (k, k)
         ``D cov D`` with ``D`` the Student factors of
-        :func:`~driveid.identify.core._noise_replicates.student_widening` (cov itself for
-        white noise, or when no replicates were drawn).
+        :func:`~driveid.identify.core._noise_replicates.student_widening` (none when no
+        replicates were drawn), plus the slow-noise excess (:func:`slow_noise_widening`);
+        cov itself for white noise.
     """
     rep = getattr(problem, "noise_replicates", None)
-    if problem.noise.is_white or rep is None or problem.n > SINK_ROWS:
+    if problem.noise.is_white or problem.n > SINK_ROWS:
         return cov
     _, jac = problem.model(chosen["p"], chosen["counts"])
-    factors = student_widening(jac, _joined_resid(problem, chosen), rep,
-                               segments=problem.segments, n_params=jac.shape[1])
-    if factors.size != cov.shape[0]:
-        return cov
-    problem.widening = factors
-    return slow_noise_widening(problem, chosen, cov * np.outer(factors, factors), jac)
+    if rep is not None:
+        factors = student_widening(jac, _joined_resid(problem, chosen), rep,
+                                   segments=problem.segments, n_params=jac.shape[1])
+        if factors.size == cov.shape[0]:
+            problem.widening = factors
+            cov = cov * np.outer(factors, factors)
+    return slow_noise_widening(problem, chosen, cov, jac)
 
 
 def slow_noise_widening(problem, chosen, cov: np.ndarray, jac=None) -> np.ndarray:

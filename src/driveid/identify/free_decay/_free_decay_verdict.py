@@ -228,7 +228,21 @@ def adequacy_of(verdict, problem, p, covariance_kind):
             f"{white['p_value']:.2g}); " + "; ".join(found)
             + f"; error bars are {covariance_kind}")
     slow = slow_noise(verdict["white_residual"], problem, p)
-    if slow["excess"]:
+    excess = getattr(problem, "slow_excess", None)
+    widened = bool(excess and excess["applied"])
+    if slow["excess"] and widened:
+        slow["note"] = slow["note"].replace(
+            "are likely too small", "include the excess seen at the record's slowest "
+            "frequencies (a power law, taken flat below half of 1/T), but wander slower "
+            "than that is not seen and they may still be too small")
+    elif widened:
+        slow["note"] = (
+            "slow noise: the prewhitened residuals' slowest Fourier frequencies hold a "
+            f"power-law excess over the noise model (p = {excess['p_value']:.2g}); the error "
+            "bars of fk_delta (theta_k_delta) and c_delta include it, but wander slower than "
+            "half of 1/T is not seen; record several correlation times longer, fit several "
+            "records, or add --drift")
+    if slow["note"]:
         notes.append(slow["note"])
         warnings.append(slow["note"])
     adequacy = Adequacy(whiteness=white,
