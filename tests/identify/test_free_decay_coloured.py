@@ -122,9 +122,10 @@ def _pink(n, rng):
 def test_slow_noise_is_warned_not_hidden():
     """1/f-like noise slower than the record is absorbed as offset and drift: warn.
 
-    The slowest component (time constant 5 s) is half the 10 s record; Δf_k and Δc coverage
-    stays ~0.45 (docs/output-error.md). The low-frequency test fired on 11 of 20 such records
-    and on 0 of 20 white ones in the benchmark's seeds.
+    The slowest component (time constant 5 s) is half the 10 s record; with the AR model alone
+    Δf_k and Δc covered ~0.45, with the slow-noise excess ~0.75-0.80 (docs/output-error.md).
+    The low-frequency test fired on 11 of 20 such records and on 0 of 20 white ones in the
+    benchmark's seeds.
     """
     rec = simulate_free_decay(P, x0=1.0, duration=10.0, fs=200.0).record
     rng = np.random.default_rng(1)
@@ -135,8 +136,33 @@ def test_slow_noise_is_warned_not_hidden():
             est = estimate_output_error(rec.replace(x=rec.x + e), mass=1.0)
             slow = est.diagnostics["adequacy"]["slow_noise"]
             fired[kind] += slow["excess"]
-            assert slow["excess"] == any(w.startswith("slow noise") for w in est.warnings)
+            widened = bool(slow["excess_fit"] and slow["excess_fit"]["applied"])
+            assert (slow["excess"] or widened) == any(w.startswith("slow noise")
+                                                      for w in est.warnings)
     # rate ~0.55 on 1/f records: P(< 3 of 10) = 2.7 %; white at the 1 % level:
     # P(>= 2 of 10) = 0.4 %
     assert fired["pink"] >= 3, fired
     assert fired["white"] <= 1, fired
+
+
+def test_slow_noise_excess_widens_the_asymmetries():
+    """1/f-like noise: the power-law excess at the slowest frequencies widens Δc and Δf_k.
+
+    On these 20 seeded records the AR model alone covered Δc 11 and Δf_k 7 times (misses
+    up to 11 s.e.); with the excess (issue 24) 17 and 17. At the 60-record benchmark rates
+    (0.43-0.48 before, 0.75-0.80 now) the 40 intervals cover ~19 before and ~31 now.
+    """
+    rec = simulate_free_decay(P, x0=1.0, duration=10.0, fs=200.0).record
+    rng = np.random.default_rng(7)
+    hits, applied = 0, 0
+    for _ in range(20):
+        est = estimate_output_error(rec.replace(x=rec.x + _pink(rec.n, rng)), mass=1.0)
+        hits += sum(abs(est.value(n) - TRUTH[n]) <= 1.96 * est.stderr(n)
+                    for n in ("c_delta", "fk_delta"))
+        excess = est.diagnostics["adequacy"]["slow_noise"]["excess_fit"]
+        applied += bool(excess and excess["applied"])
+    # Binomial(40, 0.775): P(<= 27) ~ 10 %; Binomial(40, 0.5) (the AR model alone):
+    # P(>= 28) ~ 1 % (the two parameters of one record are correlated, so these are rough)
+    assert hits >= 28, hits
+    # the excess was found on 45 of the benchmark's 60 records: P(<= 9 of 20) ~ 1 %
+    assert applied >= 10, applied

@@ -37,10 +37,11 @@ from driveid.identify.core._noise_replicates import (
     simulate_noise,
     student_widening,
 )
+from driveid.identify.core._slow_noise import slow_noise_covariance
 from driveid.identify.free_decay._free_response import SINK_ROWS, kinetic_stop_count, response
 
 __all__ = ["StreamWhitener", "simulate_noise", "structure_test", "fit_structure",
-           "noise_model_widening",
+           "noise_model_widening", "slow_noise_widening",
            "DRIFT", "QUADRATIC", "BASE"]
 
 BASE = "viscous + Coulomb"
@@ -518,7 +519,7 @@ def noise_rounds(problem, candidates, chosen, n_par, forbidden, rounds=3):
 
 
 def noise_model_widening(problem, chosen, cov: np.ndarray) -> np.ndarray:
-    """Widen a prewhitened covariance for the sampling error of its AR noise model.
+    """Widen a prewhitened covariance for its AR noise model's sampling error and blind spot.
 
     Parameters
     ----------
@@ -533,19 +534,55 @@ def noise_model_widening(problem, chosen, cov: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (k, k)
         ``D cov D`` with ``D`` the Student factors of
-        :func:`~driveid.identify.core._noise_replicates.student_widening` (cov itself for
-        white noise, or when no replicates were drawn).
+        :func:`~driveid.identify.core._noise_replicates.student_widening` (none when no
+        replicates were drawn), plus the slow-noise excess (:func:`slow_noise_widening`);
+        cov itself for white noise.
     """
     rep = getattr(problem, "noise_replicates", None)
-    if problem.noise.is_white or rep is None or problem.n > SINK_ROWS:
+    if problem.noise.is_white or problem.n > SINK_ROWS:
         return cov
     _, jac = problem.model(chosen["p"], chosen["counts"])
-    factors = student_widening(jac, _joined_resid(problem, chosen), rep,
-                               segments=problem.segments, n_params=jac.shape[1])
-    if factors.size != cov.shape[0]:
+    if rep is not None:
+        factors = student_widening(jac, _joined_resid(problem, chosen), rep,
+                                   segments=problem.segments, n_params=jac.shape[1])
+        if factors.size == cov.shape[0]:
+            problem.widening = factors
+            cov = cov * np.outer(factors, factors)
+    return slow_noise_widening(problem, chosen, cov, jac)
+
+
+def slow_noise_widening(problem, chosen, cov: np.ndarray, jac=None) -> np.ndarray:
+    """Add the covariance of the noise power at the record's slowest frequencies the model misses.
+
+    Parameters
+    ----------
+    problem : output_error._Problem
+        The fit problem with its final noise model; ``slow_excess`` is set to the test.
+    chosen : dict
+        The chosen candidate (``p``, ``counts``).
+    cov : ndarray, shape (k, k)
+        Covariance of the estimate [parameter units²].
+    jac : ndarray, shape (n, k), optional
+        The candidate's Jacobian when already formed [unit per parameter unit].
+
+    Returns
+    -------
+    ndarray, shape (k, k)
+        ``cov + M Σ_extra Mᵀ`` where the excess is significant at
+        :data:`~driveid.identify.core._slow_noise.LEVEL`
+        (:func:`~driveid.identify.core._slow_noise.slow_noise_covariance`); cov itself for
+        white noise (the unweighted fit stays exact), long records and no excess.
+    """
+    if problem.noise.is_white or problem.n > SINK_ROWS:
         return cov
-    problem.widening = factors
-    return cov * np.outer(factors, factors)
+    if jac is None:
+        _, jac = problem.model(chosen["p"], chosen["counts"])
+    extra, info = slow_noise_covariance(jac, _joined_resid(problem, chosen), problem.noise,
+                                        segments=problem.segments)
+    problem.slow_excess = info
+    if not info["applied"] or extra.shape != cov.shape:
+        return cov
+    return cov + extra
 
 
 def _joined_resid(problem, candidate):

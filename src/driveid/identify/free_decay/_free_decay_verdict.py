@@ -12,9 +12,11 @@ import numpy as np
 
 from driveid.identify.core._adequacy import Adequacy
 from driveid.identify.core._noise import hac_covariance
+from driveid.identify.core._slow_noise import excess_covariance
 from driveid.identify.free_decay._free_decay_structures import (
     inadequacy_notes,
     noise_model_widening,
+    slow_noise_widening,
     structure_model,
 )
 
@@ -62,27 +64,47 @@ def apply_verdict(problem, verdict, candidates, p, cov, quantum, combine):
             cov_s = np.linalg.inv(jac.T @ jac) * s2_w
         except np.linalg.LinAlgError:
             cov_s = np.full((theta.size, theta.size), np.nan)
+        kind = "prewhitened"
         if not richer["whiteness"]["white"]:
-            cov_s = hac_covariance(jac, richer["white_residual"])
-            return theta, cov_s, "sandwich"
-        return theta, cov_s, "prewhitened"
+            cov_s, kind = hac_covariance(jac, richer["white_residual"]), "sandwich"
+        if richer["step"] == 1:  # the richer structure absorbs slow noise too
+            cov_s = _with_slow_excess(problem, cov_s, jac, richer["white_residual"],
+                                      richer.get("noise"))
+        return theta, cov_s, kind
+    chosen = min(candidates, key=lambda c: c["rss"])
     if quantum is not None:
-        return p, cov, "bootstrap"
+        # the replicates' noise is the AR model's: it misses the slow excess as well
+        return p, slow_noise_widening(problem, chosen, cov), "bootstrap"
     if verdict["whiteness"]["white"]:
-        # widened for the AR model's own sampling error (none for white noise)
-        chosen = min(candidates, key=lambda c: c["rss"])
+        # widened for the AR model's own sampling error and the slow excess it misses
+        # (none for white noise)
         return p, noise_model_widening(problem, chosen, cov), "prewhitened"
-    sol = min(candidates, key=lambda c: c["rss"])["sol"]
+    sol = chosen["sol"]
     if sol.jac is None:  # long record: no whole Jacobian for the sandwich
         return p, cov, "prewhitened (sandwich not formed above 131 072 samples)"
     r_w = problem.noise.whiten(np.concatenate(problem.y)
-                               - problem.model(sol.x, min(candidates, key=lambda c: c["rss"])
-                                               ["counts"], False)[0], problem.segments)
+                               - problem.model(sol.x, chosen["counts"], False)[0],
+                               problem.segments)
     hac = hac_covariance(sol.jac, r_w)
     for c in candidates:
         c["cov"] = hac
     p, cov, _ = combine(candidates)
-    return p, cov, "sandwich"
+    # a Bartlett sandwich sees lags up to its bandwidth only, not the record-long wander
+    # (sol.jac is the prewhitened Jacobian of the fit)
+    return p, _with_slow_excess(problem, cov, sol.jac, r_w), "sandwich"
+
+
+def _with_slow_excess(problem, cov, jac_w, residual_w, noise=None):
+    """``cov`` plus the slow-noise excess through a prewhitened fit (none for white noise)."""
+    noise = problem.noise if noise is None else noise
+    if noise.is_white or jac_w.shape[1] != cov.shape[0]:
+        return cov
+    kept = [max(m - noise.order, 0) for m in problem.segments]
+    if sum(kept) != jac_w.shape[0]:
+        return cov
+    extra, info = excess_covariance(jac_w, residual_w, kept)
+    problem.slow_excess = info
+    return cov + extra if info["applied"] else cov
 
 
 def structure_fitted(problem, richer):
@@ -206,7 +228,21 @@ def adequacy_of(verdict, problem, p, covariance_kind):
             f"{white['p_value']:.2g}); " + "; ".join(found)
             + f"; error bars are {covariance_kind}")
     slow = slow_noise(verdict["white_residual"], problem, p)
-    if slow["excess"]:
+    excess = getattr(problem, "slow_excess", None)
+    widened = bool(excess and excess["applied"])
+    if slow["excess"] and widened:
+        slow["note"] = slow["note"].replace(
+            "are likely too small", "include the excess seen at the record's slowest "
+            "frequencies (a power law, taken flat below half of 1/T), but wander slower "
+            "than that is not seen and they may still be too small")
+    elif widened:
+        slow["note"] = (
+            "slow noise: the prewhitened residuals' slowest Fourier frequencies hold a "
+            f"power-law excess over the noise model (p = {excess['p_value']:.2g}); the error "
+            "bars of fk_delta (theta_k_delta) and c_delta include it, but wander slower than "
+            "half of 1/T is not seen; record several correlation times longer, fit several "
+            "records, or add --drift")
+    if slow["note"]:
         notes.append(slow["note"])
         warnings.append(slow["note"])
     adequacy = Adequacy(whiteness=white,
@@ -216,6 +252,8 @@ def adequacy_of(verdict, problem, p, covariance_kind):
     # prewhitened residuals
     adequacy["adequate"] = bool(white["white"])
     adequacy["slow_noise"] = {k: v for k, v in slow.items() if k != "note"}
+    # the power-law excess at the slowest Fourier frequencies and whether it widened
+    adequacy["slow_noise"]["excess_fit"] = getattr(problem, "slow_excess", None)
     return adequacy, warnings
 
 
