@@ -81,3 +81,22 @@ def test_identify_subsystems_table(tmp_path):
     assert data["parameters"]["B.J"]["value"] == pytest.approx(0.0150626 - 0.0115355,
                                                                rel=1e-3)
     assert data["parameters"]["A+B.J"]["value"] == pytest.approx(0.0150626, rel=1e-4)
+
+
+def test_identify_drive_bad_pieces_is_one_error_line(tmp_path):
+    config, rec = _record(tmp_path)
+    result = CliRunner().invoke(cli, ["identify", "drive", str(config), str(rec), "--estimate",
+                                      "body1.J", "--pieces", "-0.5"])
+    assert result.exit_code == 2
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "--pieces" in lines[0]
+
+
+def test_identify_drive_says_in_words_whether_it_fitted_pieces():
+    from driveid.commands.identify_drive import _pieces_line
+
+    done = _pieces_line({"done": True, "length": 0.5, "n_pieces": 12,
+                         "whole_record_white": True})
+    assert "then 12 pieces of 0.5 s" in done and "error bars are the pieces'" in done
+    assert _pieces_line({"done": False, "whole_record_white": True}) == \
+        "fit: the whole record"
