@@ -129,7 +129,6 @@ from driveid.sim.drive_types import DriveParams
 __all__ = ["DriveRecord", "estimate_drive", "drive_start_values"]
 
 
-
 def _noise_fitter():
     """Return ``fit_noise_model`` of the shared noise module, or None (white noise)."""
     try:
@@ -345,7 +344,7 @@ def estimate_drive(
         record r > 1 of several), covariance, diagnostics (``model_toml``: the drive with
         the identified values, ``whiteness`` per channel, ``at_bound``, ``noise_model``,
         ``n_simulations``, ``seconds``, ``pieces``: whether the second stage ran, its piece
-        length [s] and count and the whole-record fit's values).
+        length [s] and count and the whole-record fit's values and standard errors).
 
     Raises
     ------
@@ -399,7 +398,8 @@ def estimate_drive(
     if not (isinstance(input_body, (int, np.integer)) and 0 <= input_body < nb):
         raise ParameterError(f"input_body must index a body (0..{nb - 1}); got {input_body!r}")
     use_u = fb is None
-    if pieces is not None and not (math.isfinite(pieces) and pieces >= 0):
+    if pieces is not None and not (isinstance(pieces, (int, float, np.integer, np.floating))
+                                   and math.isfinite(pieces) and pieces >= 0):
         raise ParameterError(f"pieces must be a length >= 0 in seconds (0: no pieces); got "
                              f"{pieces}")
     if pieces and not use_u:
