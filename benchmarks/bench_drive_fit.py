@@ -161,7 +161,10 @@ def main() -> None:
         print(f"run {seed}: {times[-1]:.1f} s, max |error| "
               f"{100 * np.max(np.abs(errors[-1])):.2f} %"
               + (f", {info['n_pieces']} pieces of {info['length']:g} s "
-                 f"({info['pieces_not_white']} not white)" if info["done"] else ""),
+                 f"({info['pieces_not_white']} of {info['piece_channels']} channels not white"
+                 + (f"; halved from {info['halved_from']['length']:g} s, "
+                    f"{info['halved_from']['not_white']} not white" if info["halved_from"]
+                    else "") + ")" if info["done"] else ""),
               flush=True)
     errors = np.array(errors)
     print(f"one simulation {1e3 * one_sim:.2f} ms; one fit median {np.median(times):.1f} s "

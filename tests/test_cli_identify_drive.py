@@ -98,5 +98,8 @@ def test_identify_drive_says_in_words_whether_it_fitted_pieces():
     done = _pieces_line({"done": True, "length": 0.5, "n_pieces": 12,
                          "whole_record_white": True})
     assert "then 12 pieces of 0.5 s" in done and "error bars are the pieces'" in done
+    halved = _pieces_line({"done": True, "length": 0.25, "n_pieces": 24, "halved_from": {
+        "length": 0.5, "not_white": 6, "channels": 24}})
+    assert "0.5 s pieces left 6 of 24 channels not white" in halved
     assert _pieces_line({"done": False, "whole_record_white": True}) == \
         "fit: the whole record"

@@ -66,6 +66,10 @@ def _pieces_line(info: dict) -> str:
                                           " (its residual is not white: see the warnings)")
     why = ("over a whole record an open-loop drive with backlash or a poor residual is so "
            "sensitive that its error bars would be far too short")
+    halved = info.get("halved_from")
+    if halved:
+        why += (f"; {halved['length']:g} s pieces left {halved['not_white']} of "
+                f"{halved['channels']} channels not white, so they were halved")
     return (f"fit: the whole record, then {info['n_pieces']} pieces of {info['length']:g} s "
             f"with their own initial states ({why}); values and error bars are the "
             "pieces' fit's")
