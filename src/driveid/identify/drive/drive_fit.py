@@ -118,6 +118,7 @@ from driveid.identify.drive._drive_model import (
     with_values,
 )
 from driveid.identify.drive._drive_pieces import (
+    NOISE_RATIO,
     _noise_ratio,
     _piece_length,
     cut_pieces,
@@ -444,7 +445,7 @@ def estimate_drive(
     if not length:
         fin["pieces"] = {"done": False}
     fin["pieces"].update(whole_record_white=all(w["white"] for w in whole_white.values()),
-                         residual_to_noise=_noise_ratio(recs, whole_white))
+                         whole_record_residual_to_noise=_noise_ratio(recs, whole_white))
     return _result(start, base, names, fin["all_names"], fin["theta"], fin["cov"], recs,
                    fin["problems"], fin["states0"], fin["held"], units, input_body, use_u,
                    fin["nfev"], st["noise_info"], fin["cond"], fin["s2"], warnings, tic,
@@ -508,7 +509,21 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
                                                zip(names, fin["theta"][:p], strict=True)},
                        "whole_record_stderr": {n: float(math.sqrt(abs(fin["cov"][j, j])))
                                                for j, n in enumerate(names)}})
-    if len(bad) > n_ch // 10 + 1:
+    # the pieces' residual against each channel's noise over the whole record (pooled)
+    ms: dict[str, list[float]] = {}
+    for key, w in fin2["white"].items():
+        ms.setdefault(key.split("@")[0], []).append(w["rms"] ** 2)
+    ratio = max(math.sqrt(float(np.mean(v))) / max(_channel_noise(rec.channels[ch])
+                                                    for rec in recs if ch in rec.channels)
+                for ch, v in ms.items())
+    out["pieces"]["residual_to_noise"] = ratio
+    if ratio > NOISE_RATIO:
+        warnings.append(f"the fit in pieces leaves a residual {ratio:.3g} times the noise: "
+                        "the drive model does not explain the record (a poor local minimum "
+                        "of the whole-record fit the pieces started from, or a missing "
+                        "effect); its error bars are not to be trusted: start nearer the "
+                        "truth, estimate fewer parameters or check the drive's structure")
+    elif len(bad) > n_ch // 10 + 1:
         warnings.append(f"{len(bad)} of {n_ch} piece channels have residuals that are not "
                         f"white after the noise model (pieces of {length:g} s): the drive "
                         "model misses motion even over short pieces and the error bars may "
