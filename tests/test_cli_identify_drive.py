@@ -156,3 +156,25 @@ def test_identify_drive_reports_progress_against_its_cost_estimate(tmp_path):
     # every batch of simulations is counted, in order, against one estimate made up front
     assert done == sorted(done) and done[-1] >= est.diagnostics["n_simulations"]
     assert len({e for _, e in calls}) == 1 and calls[0][1] > 0
+
+
+def test_identify_drive_bad_pieces_is_one_error_line(tmp_path):
+    config, rec = _record(tmp_path)
+    result = CliRunner().invoke(cli, ["identify", "drive", str(config), str(rec), "--estimate",
+                                      "body1.J", "--pieces", "-0.5"])
+    assert result.exit_code == 2
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "--pieces" in lines[0]
+
+
+def test_identify_drive_says_in_words_whether_it_fitted_pieces():
+    from driveid.commands.identify_drive import _pieces_line
+
+    done = _pieces_line({"done": True, "length": 0.5, "n_pieces": 12,
+                         "whole_record_white": True})
+    assert "then 12 pieces of 0.5 s" in done and "error bars are the pieces'" in done
+    halved = _pieces_line({"done": True, "length": 0.25, "n_pieces": 24, "halved_from": {
+        "length": 0.5, "not_white": 6, "channels": 24}})
+    assert "0.5 s pieces left 6 of 24 channels not white" in halved
+    assert _pieces_line({"done": False, "whole_record_white": True}) == \
+        "fit: the whole record"

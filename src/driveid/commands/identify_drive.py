@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -46,6 +47,36 @@ def read_drive_records(files, record_opts, *, channels: dict[str, str] | None = 
             for path, window in specs]
 
 
+def _piece_option(text: str) -> float | None:
+    """``--pieces``: None for auto, else the piece length [s] (0: never)."""
+    if text.strip().lower() == "auto":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise click.UsageError(f"--pieces takes a length in seconds >= 0 (0: never) or auto; "
+                               f"got {text}")
+    return value
+
+
+def _pieces_line(info: dict) -> str:
+    """Return the fit's stages in plain words (one line under the header)."""
+    if not info["done"]:
+        return "fit: the whole record" + ("" if info["whole_record_white"] else
+                                          " (its residual is not white: see the warnings)")
+    why = ("over a whole record an open-loop drive with backlash or a poor residual is so "
+           "sensitive that its error bars would be far too short")
+    halved = info.get("halved_from")
+    if halved:
+        why += (f"; {halved['length']:g} s pieces left {halved['not_white']} of "
+                f"{halved['channels']} channels not white, so they were halved")
+    return (f"fit: the whole record, then {info['n_pieces']} pieces of {info['length']:g} s "
+            f"with their own initial states ({why}); values and error bars are the "
+            "pieces' fit's")
+
+
 @click.command("drive")
 @click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
 @click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]...")
@@ -60,6 +91,11 @@ def read_drive_records(files, record_opts, *, channels: dict[str, str] | None = 
               help="Body (from 1) the input acts on (default: [feedback] body, else 1).")
 @click.option("--segment", type=float, default=0.5, show_default=True,
               help="Open loop: first fit segments of this length [s] (0: whole records).")
+@click.option("--pieces", default="auto", show_default=True, metavar="SECONDS|auto",
+              help="Open loop: re-fit the records cut into pieces of this length [s], each "
+                   "with its own initial state, from the whole-record fit, and report that "
+                   "fit's error bars; auto: 0.5 s pieces for a drive with backlash or a "
+                   "whole-record residual that is not white or above the noise; 0: never.")
 @click.option("--white", is_flag=True, help="White noise only (no AR noise model).")
 @click.option("--max-steps", type=PositiveFloat(max=1e18), default=float(DEFAULT_FIT_STEPS),
               show_default=True,
@@ -69,8 +105,8 @@ def read_drive_records(files, record_opts, *, channels: dict[str, str] | None = 
 @record_options
 @output_options
 @clean_errors
-def drive_command(config, files, estimate, channel, input_column, input_body, segment, white,
-                  max_steps, model_out, record_opts, output_opts):
+def drive_command(config, files, estimate, channel, input_column, input_body, segment, pieces,
+                  white, max_steps, model_out, record_opts, output_opts):
     """Fit the lumped drive of CONFIG (TOML) to motor and load records."""
     from driveid.identify.drive.drive_fit import estimate_drive
     from driveid.io.safe_write import atomic_write_text
@@ -78,6 +114,7 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
 
     params, run = load_drive_config(config)
     names = [n.strip() for n in estimate.split(",") if n.strip()]
+    piece_length = _piece_option(pieces)
     if input_body is not None and input_body < 1:
         raise click.UsageError(f"--input-body counts bodies from 1; got {input_body}")
     if model_out is not None:
@@ -99,13 +136,15 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
                              input_body=None if input_body is None else input_body - 1,
                              torque=run.torque, units=run.units, noise_model=not white,
                              segment=segment or None, max_steps=max_steps,
+                             pieces=piece_length,
                              progress=advance)
     if model_out is not None:
         atomic_write_text(model_out, est.diagnostics["model_toml"],
                           overwrite=output_opts.overwrite)
     emit(est, output_opts,
          header=f"method: {est.method}   samples: {est.diagnostics['n_samples']}   "
-                f"simulations: {est.diagnostics['n_simulations']}")
+                f"simulations: {est.diagnostics['n_simulations']}\n"
+                + _pieces_line(est.diagnostics["pieces"]))
     if model_out is not None and not output_opts.as_json:
         click.echo(f"wrote {model_out}")
 

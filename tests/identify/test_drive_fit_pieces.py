@@ -1,0 +1,87 @@
+"""The drive fit's second stage in pieces (open loop): it runs, is reported, and covers.
+
+The calibration itself (coverage of the 95 % intervals over >= 30 realisations of the 6 s
+two-body record) is a benchmark, ``benchmarks/bench_drive_fit.py --design two-body``
+(docs/drive-fit.md); here one short seeded record.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from driveid.errors import ParameterError
+from driveid.identify.drive._drive_model import get_value, with_values
+from driveid.identify.drive._drive_pieces import cut_pieces
+from driveid.identify.drive.drive_fit import DriveRecord, estimate_drive
+from driveid.sim import BacklashLink, BodyParams, DriveParams, simulate_drive
+from driveid.sim.presets import preset_testbed
+
+_NAMES = ["body1.J", "body1.fk_mean", "body2.J", "link1.gap_plus", "link1.gap_minus"]
+_ZERO = np.zeros(2)
+
+
+def _two_body():
+    return DriveParams(bodies=(BodyParams(J=0.0115, c_mean=0.002, fk_mean=0.11),
+                               BodyParams(J=0.0035, c_mean=0.0011, fk_mean=0.03)),
+                       links=(BacklashLink(gap_plus=0.02, gap_minus=0.02, k=100.0, c=0.05),))
+
+
+def _record(seed: int, duration: float = 2.0) -> DriveRecord:
+    """Open-loop two-body backlash drive, three sines on the motor, 2e-4 rad noise."""
+    truth = _two_body()
+    t = np.arange(int(round(1000 * duration)) + 1) / 1000.0
+    u = (0.3 * np.sin(2 * np.pi * 0.5 * t) + 0.2 * np.sin(2 * np.pi * 2.3 * t)
+         + 0.1 * np.sin(2 * np.pi * 7.1 * t))
+    res = simulate_drive(truth, duration=duration, torque=np.vstack([u, 0 * u]))
+    rng = np.random.default_rng(seed)
+    return DriveRecord(t=t, u=u, channels={f"x{i + 1}": res.x[i]
+                                           + rng.normal(0, 2e-4, t.size) for i in range(2)})
+
+
+def test_cut_pieces_cover_the_record_once():
+    rec = _record(0, duration=1.13)
+    pieces, origin = cut_pieces([rec], 0.5)
+    # 0.5 s at 1 kHz: pieces start at samples 0 and 500; the last 0.13 s (< half a piece)
+    # joins the last one, which ends on the record's last sample
+    assert [a for _, a in origin] == [0, 500]
+    assert [p.t.size for p in pieces] == [501, 631]
+    assert pieces[1].t[0] == 0.0 and np.array_equal(pieces[1].channels["x2"],
+                                                     rec.channels["x2"][500:])
+
+
+def test_pieces_stage_runs_and_its_error_bars_cover():
+    truth = _two_body()
+    start, _, _ = with_values(truth, _ZERO, _ZERO, {
+        n: get_value(truth, _ZERO, _ZERO, n) * (1.2 if k % 2 else 0.8)
+        for k, n in enumerate(_NAMES)})
+    est = estimate_drive(_record(4), start, estimate=_NAMES, pieces=0.5)
+    info = est.diagnostics["pieces"]
+    assert info["done"] and info["n_pieces"] == 4 and info["length"] == 0.5
+    assert "4 pieces of 0.5 s" in est.diagnostics["covariance_method"]
+    for name in _NAMES:
+        true = get_value(truth, _ZERO, _ZERO, name)
+        se = est.stderr(name)
+        assert np.isfinite(se) and se > 0, name
+        # 3 standard errors: a calibrated interval misses it with probability 0.27 % per
+        # parameter (1.3 % for the five); the benchmark's 30-run coverage is the real check
+        assert abs(est.value(name) - true) <= 3 * se, (name, est.value(name), true, se)
+    # on this seed the first stage's own error bars miss: body1.J is 3.8 of its standard
+    # errors off (observed), so the check above can fail without the pieces stage
+    whole = info["whole_record_values"]["body1.J"] - get_value(truth, _ZERO, _ZERO, "body1.J")
+    assert abs(whole) > 3 * info["whole_record_stderr"]["body1.J"]
+    # the pieces reach the noise (observed 0.99): no warning that the model misses motion
+    assert info["residual_to_noise"] < 1.5 and not est.warnings, est.warnings
+    # the whole-record initial states are still reported, from the first stage
+    assert np.isfinite(est.value("body1.x0")) and "body1.x0@2" not in est.params
+
+
+def test_pieces_option_is_checked():
+    rec = _record(0, duration=0.5)
+    with pytest.raises(ParameterError, match="pieces must be a length"):
+        estimate_drive(rec, _two_body(), estimate=["body1.J"], pieces=-1.0)
+    closed = preset_testbed()
+    res = simulate_drive(closed, duration=0.5, fs=1000.0, x0=[1.0, 1.0, 1.0])
+    with pytest.raises(ParameterError, match="needs an open-loop drive"):
+        estimate_drive(DriveRecord(t=res.t, channels={"x1": res.x[0]}), closed,
+                       estimate=["body1.J"], pieces=0.25)
