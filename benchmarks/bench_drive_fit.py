@@ -141,12 +141,13 @@ def main() -> None:
     errors, times, ses, vals, whole = [], [], [], [], []
     work = [(seed, args.start_off, args.noise, args.counts_per_rev, args.design, None, pieces)
             for seed in range(args.runs)]
+    pool = None
     if args.workers > 1:
         from concurrent.futures import ProcessPoolExecutor
 
-        with ProcessPoolExecutor(args.workers) as pool:
-            outcomes = pool.map(_one_fit, *zip(*work, strict=True))
-            outcomes = list(outcomes)
+        pool = ProcessPoolExecutor(args.workers)
+        # in order, each printed as it arrives: a run cut short still leaves its lines
+        outcomes = pool.map(_one_fit, *zip(*work, strict=True))
     else:
         outcomes = (_one_fit(*w) for w in work)
     for seed, (seconds, val, se, _, info) in enumerate(outcomes):
@@ -158,7 +159,9 @@ def main() -> None:
         errors.append(val / true - 1)
         ses.append(se)
         vals.append(val)
-        print(f"run {seed}: {times[-1]:.1f} s, max |error| "
+        # covered (1) or not (0), parameter by parameter: a cut-short run can still be counted
+        covered = "".join("1" if c else "0" for c in np.abs(val - true) <= 1.96 * se)
+        print(f"run {seed}: {times[-1]:.1f} s, covered {covered}, max |error| "
               f"{100 * np.max(np.abs(errors[-1])):.2f} %"
               + (f", {info['n_pieces']} pieces of {info['length']:g} s "
                  f"({info['pieces_not_white']} of {info['piece_channels']} channels not white"
@@ -166,6 +169,8 @@ def main() -> None:
                     f"{info['halved_from']['not_white']} not white" if info["halved_from"]
                     else "") + ")" if info["done"] else ""),
               flush=True)
+    if pool is not None:
+        pool.shutdown()
     errors = np.array(errors)
     print(f"one simulation {1e3 * one_sim:.2f} ms; one fit median {np.median(times):.1f} s "
           f"= {np.median(times) / one_sim:.0f} simulations")
