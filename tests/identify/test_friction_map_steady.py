@@ -82,3 +82,28 @@ def test_plateau_force_error_bar_is_honest_under_low_pass_noise():
     sd = float(np.std(means))
     assert 0.8 < sd / np.mean(se_new) < 1.25
     assert sd / np.mean(se_old) < 0.5  # the old error bar, for contrast
+
+
+def test_plateau_means_drifting_between_plateaus_are_warned():
+    # issue 24: a slow wander of the force that spans plateaus (1/f-like, here a random walk
+    # of 0.3 N rms across the record) moves whole plateau means together; the map's
+    # intervals then miss, so the fit must say so. Without the drift: no such warning
+    from driveid.identify.friction.friction_map import _scatter_warning
+
+    rng = np.random.default_rng(2)
+    speeds = np.array([0.01, 0.02, 0.04, 0.07, 0.1])
+    se = np.full(speeds.size, 0.02)  # each plateau mean's own error bar [N]
+
+    def branch(drift):
+        from driveid.identify.friction.friction_map import _fit_branch
+        from driveid.signal.steady import SteadySegment
+
+        force = 3.0 + 50.0 * speeds + se * rng.standard_normal(speeds.size) + drift
+        pts = [SteadySegment(0, 100, v, 1e-4, f, s, 100)
+               for v, f, s in zip(speeds, force, se, strict=True)]
+        return _fit_branch("coulomb_viscous", pts)
+
+    drifted = branch(np.cumsum(0.3 * rng.standard_normal(speeds.size)))
+    assert _scatter_warning("coulomb_viscous", "plus", drifted)
+    # honest plateaus: chi2 with 3 dof exceeds its 1 % point in 1 % of cases; seeded here
+    assert not _scatter_warning("coulomb_viscous", "plus", branch(0.0))
