@@ -463,23 +463,10 @@ def estimate_pho_output_error(
         f"fits to {best.diagnostics['misfit_ratio']:.3g} times the noise and is reported")
 
 
-def _fit_campaign(
-    records: Sequence[Record],
-    *,
-    delay: float | None = None,
-    K_known: float | None = None,
-    units: str | None = None,
-    quantisation: float | str | None = "auto",
-    bootstrap: int = 50,
-    refit: bool = False,
-    rng: np.random.Generator | int | None = None,
-    start: Estimate | None = None,
-    fit_release: bool | None = None,
-    progress: Callable[[int, int], Any] | None = None,
-    static: str = "auto",
-    noise_model: bool = True,
-) -> Estimate:
-    """Fit the campaign once from ``start`` (see :func:`estimate_pho_output_error`)."""
+def _fit_campaign(records: Sequence[Record], *, delay, K_known, units, quantisation, bootstrap,
+                  refit, rng, start, fit_release, progress, static,
+                  noise_model) -> Estimate:
+    """Fit once from ``start``; arguments and defaults: :func:`estimate_pho_output_error`."""
     records = list(records)
     if not records:
         raise IdentificationError(
