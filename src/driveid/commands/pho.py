@@ -199,11 +199,13 @@ def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, 
     n_runs = 2 * len(P_values) * n_D
     check_count(n_runs, max_runs, "runs in the campaign (2 x P values x D values)",
                 override="--max-runs N")  # before the progress bar opens
+    from driveid.experiment.pho import CSV_BYTES_PER_SAMPLE
+
     n_samples = n_runs * (duration * fs + 1)
     if n_samples > 5e7 and not quiet:  # long but feasible: say so before the silence
         click.echo(f"PHO campaign: {n_runs} runs of {duration:g} s at {fs:g} Hz, "
-                   f"{n_samples:.3g} samples, about {n_samples * 75 / 1e9:.3g} GB of CSV "
-                   f"in {out}", err=True)
+                   f"{n_samples:.3g} samples, about "
+                   f"{n_samples * CSV_BYTES_PER_SAMPLE / 1e9:.3g} GB of CSV in {out}", err=True)
     with progress_bar(n_runs, "PHO runs", quiet=quiet, unit="run") as bar:
         campaign = run_pho_campaign(
             plant, P_values=P_values, D_start=D_start, D_step=D_step, n_D=n_D, x0=x0,

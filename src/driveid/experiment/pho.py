@@ -71,6 +71,8 @@ MAX_RUNS = MAX_CAMPAIGN_RUNS
 _BYTES_PER_SAMPLE_RUN = 96
 #: Bytes kept per sample of every finished run (t, x, u, v in the returned Campaign).
 _BYTES_PER_SAMPLE_KEPT = 32
+#: Bytes of one CSV line of t, x, u at 17 digits (the binary formats hold 3 doubles) [B].
+CSV_BYTES_PER_SAMPLE = 75
 
 __all__ = [
     "RunAssessment",
@@ -438,8 +440,8 @@ def run_pho_campaign(
                      _BYTES_PER_SAMPLE_KEPT,
                      f"{n_planned} run(s) of duration {duration:g} s at fs {fs:g} Hz",
                      override="shorten --duration, lower --fs or split the grid")
-    # a CSV line of t, x, u at 17 digits is ~75 B; the binary formats hold 3 doubles
-    check_disk(n_planned * n_samples * (75 if suffix == ".csv" else 24), out_dir,
+    check_disk(n_planned * n_samples * (CSV_BYTES_PER_SAMPLE if suffix == ".csv" else 24),
+               out_dir,
                f"{n_planned} run(s) of {duration:g} s at {fs:g} Hz",
                override="shorten --duration, lower --fs, split the grid or write elsewhere")
     old = None
