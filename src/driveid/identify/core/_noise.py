@@ -329,7 +329,11 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, *,
     r = np.asarray(residual, float)
     n = r.size
     if bread is None:
-        bread = np.linalg.inv(jac.T @ jac)
+        # by the SVD: a singular Jacobian (a parameter the record does not move) gives a
+        # huge variance along its null direction instead of an exception (callers warn)
+        _, sv, vt = np.linalg.svd(jac, full_matrices=False)
+        floor = max(1e-12 * float(sv[0]) if sv.size else 0.0, 1e-300)
+        bread = (vt.T / np.maximum(sv, floor) ** 2) @ vt
     g = jac * r[:, None]
     lengths = segment_lengths(segments, n)
     if lags is None:
