@@ -27,6 +27,7 @@ from driveid.errors import IdentificationError
 from driveid.identify.core._adequacy import Adequacy, input_cross_correlation, ljung_box
 from driveid.identify.core._noise import MAX_ORDER, NoiseModel, fit_noise_model, hac_covariance
 from driveid.identify.core._plausibility import held_at_zero
+from driveid.identify.core._slow_noise import excess_covariance
 
 __all__: list[str] = []
 
@@ -220,6 +221,19 @@ def _gls(Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray, cov: np.ndarray, run
                "standard errors, so the ordinary least-squares values are reported"
                if theta is theta_ols else ""))
         fit["warnings"].append(notes[-1])
+    if kind in ("white", "prewhitened"):
+        # noise slower than the AR model sees (1/f-like drift): its power at the record's
+        # slowest frequencies, where the offset and the Coulomb term live, taken through
+        # the fit (issue 24: offset coverage 0.35 without it; docs/validation.md)
+        extra, slow = excess_covariance(Ww, e_w, kept)
+        fit["slow_noise"] = slow
+        if slow["applied"] and extra.shape == cov.shape:
+            cov = cov + extra
+            kind += " + slow-noise excess"
+            notes.append(
+                f"the residuals hold more power at the record's slowest frequencies than the "
+                f"AR({model.order}) noise model (excess ~ f^-{slow['slope']:.2g}, p = "
+                f"{slow['p_value']:.2g}): the standard errors include it")
     if not cross["uncorrelated"]:
         notes.append(
             f"residuals correlate with the velocity (|rho| = {cross['max_abs']:.2f} at lag "

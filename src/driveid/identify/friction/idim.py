@@ -189,7 +189,12 @@ def estimate_idim(
         Newey–West sandwich when even the prewhitened residuals are not white).
         Diagnostics: ``noise_model`` (order, AR coefficients, ``n_eff``), ``adequacy``
         (Ljung–Box whiteness of the prewhitened residuals, their cross-correlation with the
-        prewhitened velocity, covariance kind, notes), ``stderr_white`` (the ordinary
+        prewhitened velocity, covariance kind, notes), ``slow_noise`` (the test for noise
+        power at the record's slowest frequencies beyond the AR model, 1/f-like drift:
+        ``amplitude``, ``slope``, ``p_value``, ``applied``; where applied its covariance is
+        added, :mod:`driveid.identify.core._slow_noise`; None where not tested: ``noise="white"``
+        or a sandwich covariance),
+        ``stderr_white`` (the ordinary
         least-squares standard errors, for comparison), ``cond``,
         ``relative_error_pct`` (``100·||e||/||y||``), ``error_norm``, ``error_std``,
         ``n``, ``n_records``, ``residual_lag1`` (lag-1 autocorrelation of the residual;
@@ -331,6 +336,7 @@ def estimate_idim(
         "noise": noise,
         "noise_model": fit["noise_model"].to_dict(),
         "adequacy": fit["adequacy"].to_dict(),
+        "slow_noise": fit.get("slow_noise"),
         "stderr_white": {nm: float(s_) for nm, s_ in
                          zip(est_names, np.sqrt(np.diag(fit["cov_white"])), strict=True)},
     }
