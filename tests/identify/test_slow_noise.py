@@ -73,3 +73,20 @@ def test_white_record_is_untouched(monkeypatch):
     for name in ("c_mean", "c_delta", "fk_mean", "fk_delta", "K"):
         assert again.stderr(name) == est.stderr(name)
         assert again.value(name) == est.value(name)
+
+
+def test_sandwich_of_a_singular_jacobian_is_unknown_not_an_exception():
+    # a parameter the record never moves (a zero column): the Newey-West sandwich used to
+    # raise numpy's LinAlgError out of a drive fit; now that parameter's variance is
+    # unknown (nan, never 0) and the others are what the regular columns alone give
+    from driveid.identify.core._noise import hac_covariance
+
+    rng = np.random.default_rng(3)
+    n = 500
+    regular = np.column_stack([np.ones(n), np.linspace(-1.0, 1.0, n)])
+    r = rng.normal(size=n)
+    cov = hac_covariance(np.column_stack([regular, np.zeros(n)]), r)
+    alone = hac_covariance(regular, r)
+    assert np.all(np.isnan(cov[2])) and np.all(np.isnan(cov[:, 2]))
+    # the regular block is unchanged (the null direction is orthogonal to it)
+    np.testing.assert_allclose(cov[:2, :2], alone, rtol=1e-9)

@@ -323,17 +323,22 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, *,
     Returns
     -------
     ndarray, shape (p, p)
-        Covariance of the estimate [parameter units²].
+        Covariance of the estimate [parameter units²]; nan in the rows and columns of
+        parameters the Jacobian cannot tell apart (singular within 1e-12).
     """
     jac = np.asarray(jac, float)
     r = np.asarray(residual, float)
     n = r.size
+    unknown = np.zeros(jac.shape[1], bool)
     if bread is None:
-        # by the SVD: a singular Jacobian (a parameter the record does not move) gives a
-        # huge variance along its null direction instead of an exception (callers warn)
+        # by the SVD: a singular Jacobian (a parameter the record does not move) leaves the
+        # parameters in its null direction unknown (nan) instead of raising; the sandwich
+        # would give them a variance of 0 (callers warn that they are not identifiable)
         _, sv, vt = np.linalg.svd(jac, full_matrices=False)
         floor = max(1e-12 * float(sv[0]) if sv.size else 0.0, 1e-300)
-        bread = (vt.T / np.maximum(sv, floor) ** 2) @ vt
+        null = sv <= floor
+        unknown = np.any(np.abs(vt[null]) > 1e-8, axis=0)
+        bread = (vt[~null].T / sv[~null] ** 2) @ vt[~null]
     g = jac * r[:, None]
     lengths = segment_lengths(segments, n)
     if lags is None:
@@ -351,7 +356,10 @@ def hac_covariance(jac: np.ndarray, residual: np.ndarray, *,
                 gamma += block[ell:].T @ block[:-ell]
             start += length
         meat += weight * (gamma + gamma.T)
-    return bread @ meat @ bread
+    cov = bread @ meat @ bread
+    cov[unknown, :] = np.nan
+    cov[:, unknown] = np.nan
+    return cov
 
 
 def _decorrelation_lag(r: np.ndarray, lengths: list[int], limit: int = 2000) -> int:
