@@ -12,7 +12,7 @@ import pytest
 
 from driveid.errors import ParameterError
 from driveid.identify.drive._drive_model import get_value, with_values
-from driveid.identify.drive._drive_pieces import cut_pieces
+from driveid.identify.drive._drive_pieces import cut_pieces, measured_states
 from driveid.identify.drive.drive_fit import DriveRecord, estimate_drive
 from driveid.sim import BacklashLink, BodyParams, DriveParams, simulate_drive
 from driveid.sim.presets import preset_testbed
@@ -48,6 +48,28 @@ def test_cut_pieces_cover_the_record_once():
     assert [p.t.size for p in pieces] == [501, 631]
     assert pieces[1].t[0] == 0.0 and np.array_equal(pieces[1].channels["x2"],
                                                      rec.channels["x2"][500:])
+
+
+def test_measured_piece_states_read_the_gap_from_the_positions():
+    # noise-free positions are the simulation's, so each piece's measured start is the
+    # simulated state at its first sample up to the quadratic's truncation over 20 ms
+    truth = _two_body()
+    t = np.arange(2001) / 1000.0
+    u = 0.3 * np.sin(2 * np.pi * 0.5 * t) + 0.2 * np.sin(2 * np.pi * 2.3 * t)
+    res = simulate_drive(truth, duration=2.0, torque=np.vstack([u, 0 * u]))
+    rec = DriveRecord(t=t, u=u, channels={"x1": res.x[0], "x2": res.x[1]})
+    pieces, origin = cut_pieces([rec], 0.5)
+    far = [(np.full(2, 9.0), np.full(2, 9.0))] * len(pieces)
+    for (x0, v0), (_, a) in zip(measured_states(pieces, far), origin, strict=True):
+        # at 0.5 s the load is in contact at the end of its 20 mrad gap (a 37 ms contact
+        # oscillation, not a quadratic): 0.27 mrad and 0.17 of 2.3 rad/s there, far below
+        # the gap the start has to get right; elsewhere 1e-5 rad and 0.03 rad/s
+        np.testing.assert_allclose(x0, res.x[:, a], atol=5e-4)
+        np.testing.assert_allclose(v0, res.v[:, a], rtol=0.1, atol=0.03)
+    # a body without a measured channel keeps the fallback
+    only_motor = [DriveRecord(t=p.t, u=p.u, channels={"x1": p.channels["x1"]}) for p in pieces]
+    kept = measured_states(only_motor, far)
+    assert all(x0[1] == 9.0 and v0[1] == 9.0 for x0, v0 in kept)
 
 
 def test_pieces_stage_runs_and_its_error_bars_cover():

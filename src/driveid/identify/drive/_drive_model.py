@@ -351,9 +351,18 @@ class DriveProblem:
     def __init__(self, base: DriveParams, x0: np.ndarray, v0: np.ndarray,
                  names: Sequence[str], scale: np.ndarray, record: DriveRecord,
                  input_body: int | None, torque: np.ndarray | None = None,
-                 parallel: bool = True, progress: Any = None) -> None:
+                 parallel: bool = True, progress: Any = None,
+                 built: dict | None = None) -> None:
         self.base, self.x0, self.v0 = base, np.asarray(x0, float), np.asarray(v0, float)
         self.names, self.scale = list(names), np.asarray(scale, float)
+        # initial states are set on the arrays; the drive itself is built once per value
+        # of the other parameters, in a cache that the problems of one fit may share (the
+        # pieces of a record: every piece's Jacobian perturbs the same shared parameters)
+        self._states = [(j, n.rsplit(".", 1)[1] == "x0", _split(n, base)[1])
+                        for j, n in enumerate(self.names) if n.endswith((".x0", ".v0"))]
+        self._drive_cols = [j for j, n in enumerate(self.names)
+                            if not n.endswith((".x0", ".v0"))]
+        self._built = {} if built is None else built
         self.record = record
         self.channels = list(record.channels)
         n, nb = record.t.size, base.n_bodies
@@ -371,8 +380,22 @@ class DriveProblem:
 
     def build(self, z: np.ndarray) -> tuple[DriveParams, np.ndarray, np.ndarray]:
         """Return the drive and initial state at scaled values ``z``."""
-        values = dict(zip(self.names, np.asarray(z) * self.scale, strict=True))
-        return with_values(self.base, self.x0, self.v0, values)
+        theta = np.asarray(z, float) * self.scale
+        cols = self._drive_cols
+        key = (id(self.base), tuple(self.names[j] for j in cols), theta[cols].tobytes())
+        hit = self._built.get(key)
+        if hit is not None and hit[0] is self.base:
+            params = hit[1]
+        else:
+            if len(self._built) > 4096:  # a long fit: the early trial drives are not asked again
+                self._built.clear()
+            params = with_values(self.base, self.x0, self.v0,
+                                 {self.names[j]: theta[j] for j in cols})[0]
+            self._built[key] = (self.base, params)
+        x0, v0 = self.x0.copy(), self.v0.copy()
+        for j, is_x, body in self._states:
+            (x0 if is_x else v0)[body] = theta[j]
+        return params, x0, v0
 
     def outputs(self, zs: Sequence[np.ndarray]) -> list[np.ndarray]:
         """Simulate each ``z``; return the measured channels, shape (n_channels, n) each."""

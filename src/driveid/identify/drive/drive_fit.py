@@ -99,16 +99,12 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
-from threadpoolctl import threadpool_limits
 
-from driveid.errors import IdentificationError, ParameterError
+from driveid.errors import ParameterError
 from driveid.identify.core.estimate import Estimate, Parameter
 from driveid.identify.drive._drive_covariance import _channel_noise, _finish, _warn_coloured
-from driveid.identify.drive._drive_encoder import _quanta
 from driveid.identify.drive._drive_model import (
     DEFAULT_FIT_STEPS,
-    DriveProblem,
     DriveRecord,
     channel_index,
     check_fit_cost,
@@ -116,7 +112,6 @@ from driveid.identify.drive._drive_model import (
     counting,
     drive_to_toml,
     get_value,
-    lower_bound,
     parameter_names,
     parameter_unit,
     with_values,
@@ -126,21 +121,20 @@ from driveid.identify.drive._drive_pieces import (
     _noise_ratio,
     _piece_length,
     cut_pieces,
+    measured_states,
+    piece_costs,
     piece_states,
+)
+from driveid.identify.drive._drive_stage import (
+    _head,
+    _horizons,
+    _stage,
+    _states_of,
 )
 from driveid.identify.drive._drive_starts import drive_start_values
 from driveid.sim.drive_types import DriveParams
 
 __all__ = ["DriveRecord", "estimate_drive", "drive_start_values"]
-
-
-def _noise_fitter():
-    """Return ``fit_noise_model`` of the shared noise module, or None (white noise)."""
-    try:
-        from driveid.identify.core._noise import fit_noise_model
-    except ImportError:  # until the shared noise module is there: white noise
-        return None
-    return fit_noise_model
 
 
 def _records(records) -> list[DriveRecord]:
@@ -150,127 +144,6 @@ def _records(records) -> list[DriveRecord]:
     if not out or not all(isinstance(r, DriveRecord) for r in out):
         raise ParameterError("records must be a DriveRecord or a non-empty sequence of them")
     return out
-
-
-def _initial_state(record: DriveRecord, params: DriveParams) -> tuple[np.ndarray, np.ndarray]:
-    """Start values of the initial state from the first samples of the record."""
-    nb = params.n_bodies
-    x0, v0 = np.full(nb, np.nan), np.full(nb, np.nan)
-    head = max(2, min(20, record.t.size // 50))
-    dt = 1.0 / record.fs
-    for name, y in record.channels.items():
-        kind, body = channel_index(name)
-        if body >= nb:
-            continue
-        if kind == "x":
-            x0[body] = float(np.mean(y[:3]))
-            if np.isnan(v0[body]):
-                tt = np.arange(head) * dt
-                coef, res, *_ = np.polyfit(tt, y[:head], 1, full=True)
-                se = math.sqrt(float(res[0]) / (head - 2) / np.sum((tt - tt.mean()) ** 2)) \
-                    if res.size else 0.0
-                # a slope within noise is a start at rest (the common case): a noisy
-                # nonzero start velocity lets a stuck body slide, a poor local minimum
-                v0[body] = float(coef[0]) if abs(coef[0]) > 3.0 * se else 0.0
-        else:
-            v0[body] = float(y[0])
-    known = np.flatnonzero(np.isfinite(x0))
-    for i in range(nb):  # an unmeasured body starts where its nearest measured one does
-        if np.isnan(x0[i]):
-            x0[i] = x0[known[np.argmin(np.abs(known - i))]] if known.size else 0.0
-        if np.isnan(v0[i]):
-            v0[i] = 0.0
-    locked = np.array([b.locked for b in params.bodies])
-    v0[locked] = 0.0
-    return x0, v0
-
-
-def _scale(name: str, value: float, base: DriveParams) -> float:
-    """Typical size of a parameter for scaling (its start, or a related one where 0)."""
-    if value != 0.0:
-        return abs(value)
-    owner, field_name = name.rsplit(".", 1)
-    partner = {"c_delta": "c_mean", "fk_delta": "fk_mean", "fs_delta": "fs_mean",
-               "v_s_delta": "v_s",
-               "gap_minus": "gap_plus", "gap_plus": "gap_minus"}.get(field_name)
-    if partner is not None:
-        try:
-            other = abs(get_value(base, np.zeros(base.n_bodies), np.zeros(base.n_bodies),
-                                  f"{owner}.{partner}"))
-        except ParameterError:
-            other = 0.0
-        if other > 0:
-            return 0.1 * other if field_name.endswith("delta") else other
-    # lengths and times that are often 0 at the start: a millimetre (milliradian), a
-    # millisecond (a loop's delay, a friction memory)
-    return 1e-3 if field_name in ("gap_plus", "gap_minus", "delay", "memory") else 1.0
-
-
-class _Fit:
-    """The stacked, weighted (and prewhitened) residual of all records and channels."""
-
-    def __init__(self, problems, index, records, sigma):
-        self.problems, self.index, self.records = problems, index, records
-        self.sigma = sigma  # per record: array (n_channels,)
-        self.filters: list | None = None  # per record: list of noise models per channel
-        self.prior: np.ndarray | None = None  # shared z held loosely (growing horizon)
-        self.quanta: list | None = None  # per record: (step, noise sd) or None per channel
-        self._local: dict[bytes, list] = {}  # the last local Jacobian, by z
-
-    def _whiten(self, r: int, c: int, values: np.ndarray) -> np.ndarray:
-        if self.filters is None:
-            return values
-        return self.filters[r][c].whiten(values)
-
-    def _measured(self, r: int, c: int, y: np.ndarray, jac: np.ndarray | None = None):
-        """Return the expected encoder reading of a simulated channel (and its Jacobian)."""
-        if self.quanta is None or self.quanta[r][c] is None:
-            return y, jac
-        q, sd = self.quanta[r][c]
-        k = np.arange(1, 6)[:, None]
-        damp = (-1.0) ** k * np.exp(-2.0 * (np.pi * k * sd / q) ** 2)
-        phase = 2.0 * np.pi * k * y[None, :] / q
-        mean = y + np.sum(q / (np.pi * k) * damp * np.sin(phase), axis=0)
-        if jac is None:
-            return mean, None
-        slope = 1.0 + np.sum(2.0 * damp * np.cos(phase), axis=0)
-        return mean, jac * slope[:, None]
-
-    def raw_residuals(self, z: np.ndarray) -> list[np.ndarray]:
-        """Model minus data per record, shape (n_channels, n), unweighted."""
-        out = []
-        for r, (prob, idx, rec) in enumerate(zip(self.problems, self.index, self.records,
-                                                 strict=True)):
-            y = prob.outputs([z[idx]])[0]
-            model = np.array([self._measured(r, c, y[c])[0] for c in range(y.shape[0])])
-            out.append(model - np.array([rec.channels[c] for c in prob.channels]))
-        return out
-
-    def residual(self, z: np.ndarray) -> np.ndarray:
-        parts = []
-        for r, res in enumerate(self.raw_residuals(z)):
-            for c in range(res.shape[0]):
-                parts.append(self._whiten(r, c, res[c] / self.sigma[r][c]))
-        if self.prior is not None:
-            parts.append(z[:self.prior.size] - self.prior)
-        return np.concatenate(parts)
-
-    def jacobian(self, z: np.ndarray, local: bool = False) -> np.ndarray:
-        """Weighted (and prewhitened) Jacobian; ``local``: the covariance's small-step one."""
-        blocks = []
-        key = z.tobytes()
-        if local and key not in self._local:
-            self._local = {key: [prob.local_jacobian(z[idx]) for prob, idx
-                                 in zip(self.problems, self.index, strict=True)]}
-        for r, (prob, idx) in enumerate(zip(self.problems, self.index, strict=True)):
-            y, jac = self._local[key][r] if local else prob.value_and_jacobian(z[idx])
-            for c in range(jac.shape[0]):
-                full = np.zeros((jac.shape[1], z.size))
-                full[:, idx] = self._measured(r, c, y[c], jac[c])[1] / self.sigma[r][c]
-                blocks.append(self._whiten(r, c, full))
-        if self.prior is not None:
-            blocks.append(np.eye(self.prior.size, z.size))
-        return np.vstack(blocks)
 
 
 def estimate_drive(
@@ -484,16 +357,25 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
                               dict(zip(names, fin["theta"][:p], strict=True)))
     zs = [fin["sol"].x[idx] for idx in st["index"]]
     every_state = [n for n in parameter_names(start) if n.endswith((".x0", ".v0"))]
+    noise = {ch: max(_channel_noise(rec.channels[ch]) for rec in recs if ch in rec.channels)
+             for rec in recs for ch in rec.channels}
     first = None
     while True:
         cut, origin = cut_pieces(recs, length)
-        starts = piece_states(st["problems"], zs, origin)
+        simulated = piece_states(st["problems"], zs, origin)
         # each piece's state alone first, the parameters held at the whole-record fit's: a
         # start state off by the whole-record fit's drift would otherwise pull the shared
-        # parameters towards a local minimum of the joint fit
-        pre = _stage(cut, whole, start, [], every_state, None, None, input_body, use_u,
-                     torque, parallel, max_nfev, False, starts, progress=progress)
-        starts = _states_of(pre, pre["sol"].x * pre["scale_all"], 0)
+        # parameters towards a local minimum of the joint fit; from the simulated and from
+        # the measured state, the better kept piece by piece
+        tried = []
+        for cand in (simulated, measured_states(cut, simulated)):
+            pre = _stage(cut, whole, start, [], every_state, None, None, input_body, use_u,
+                         torque, parallel, max_nfev, False, cand, progress=progress)
+            tried.append((piece_costs(pre["fit"], pre["sol"].x, noise),
+                          _states_of(pre, pre["sol"].x * pre["scale_all"], 0)))
+        (cost_a, states_a), (cost_b, states_b) = tried
+        starts = [b if cb < ca else a for a, b, ca, cb
+                  in zip(states_a, states_b, cost_a, cost_b, strict=True)]
         st2 = _stage(cut, whole, start, names, every_state, None, None, input_body, use_u,
                      torque, parallel, max_nfev, noise_model, starts, progress=progress)
         own: list[str] = []
@@ -528,8 +410,6 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
     # the pieces' residual against each channel's noise over the whole record: the median
     # over the piece channels (a few pieces far off left the benchmark's error bars right,
     # seeds 2 and 29: pooled rms 2.5 and 5.3 times the noise, errors within 1.9 s.e.)
-    noise = {ch: max(_channel_noise(rec.channels[ch]) for rec in recs if ch in rec.channels)
-             for ch in {key.split("@")[0] for key in fin2["white"]}}
     ratio = float(np.median([w["rms"] / noise[key.split("@")[0]]
                              for key, w in fin2["white"].items()]))
     out["pieces"]["residual_to_noise"] = ratio
@@ -546,178 +426,6 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
                         "model misses motion even over short pieces and the error bars may "
                         "be short; check the drive's structure (friction, a missing link)")
     return out
-
-
-def _horizons(recs, first: float | None) -> list[float]:
-    """Fractions of the records fitted before the whole: first, 2·first, 4·first ... [-]."""
-    if not first:
-        return []
-    total = min(float(r.t[-1] - r.t[0]) for r in recs)
-    out, h = [], float(first)
-    while h < 0.7 * total:
-        out.append(h / total)
-        h *= 2.0
-    return out
-
-
-def _head(rec: DriveRecord, fraction: float) -> DriveRecord:
-    n = max(int(round(fraction * rec.t.size)), 20)
-    return DriveRecord(t=rec.t[:n], u=None if rec.u is None else rec.u[:n],
-                       channels={c: y[:n] for c, y in rec.channels.items()}, meta=rec.meta)
-
-
-def _states_of(st: dict, theta: np.ndarray, n_shared: int) -> list:
-    """Return the fitted initial states of a stage, per record (the next stage's start)."""
-    out = []
-    for prob, idx, (sx, sv) in zip(st["problems"], st["index"], st["states0"], strict=True):
-        sx, sv = sx.copy(), sv.copy()
-        for name, j in zip(prob.names[n_shared:], idx[n_shared:], strict=True):
-            body = int(name[4:name.index(".")]) - 1
-            (sx if name.endswith(".x0") else sv)[body] = theta[j]
-        out.append((sx, sv))
-    return out
-
-
-def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, torque,
-           parallel, max_nfev, noise_model, starts=None, hold=False, progress=None) -> dict:
-    """One least-squares fit of shared parameters and per-record states (weighted twice)."""
-    nb = start.n_bodies
-    zero = np.zeros(nb)
-    shared_values = np.array([get_value(base, zero, zero, n) for n in names])
-    scale_shared = np.array([_scale(n, v, base) for n, v in zip(names, shared_values,
-                                                                 strict=True)])
-    # global vector: shared parameters, then each record's free states
-    z0 = list(shared_values / scale_shared)
-    all_names = list(names)
-    problems, index, states0 = [], [], []
-    for r, rec in enumerate(recs):
-        sx, sv = _initial_state(rec, base) if starts is None else starts[r]
-        if x0 is not None:
-            sx = np.broadcast_to(np.asarray(x0, float), (nb,)).copy()
-        if v0 is not None:
-            sv = np.broadcast_to(np.asarray(v0, float), (nb,)).copy()
-        states0.append((sx, sv))
-        idx = list(range(len(names)))
-        local = list(names)
-        scale = list(scale_shared)
-        for n in free_states:
-            value = get_value(base, sx, sv, n)
-            s = _state_scale(n, rec)
-            idx.append(len(all_names))
-            all_names.append(n if len(recs) == 1 else f"{n}@{r + 1}")
-            local.append(n)
-            scale.append(s)
-            z0.append(value / s)
-        problems.append(DriveProblem(base, sx, sv, local, np.array(scale), rec,
-                                     input_body if use_u else None, torque=torque,
-                                     parallel=parallel, progress=progress))
-        index.append(np.array(idx))
-    z0 = np.array(z0)
-    scale_all = np.concatenate([scale_shared] + [p.scale[len(names):] for p in problems])
-    lower = np.array([lower_bound(n.split("@")[0]) for n in all_names]) / scale_all
-    upper = np.full(z0.size, np.inf)
-    # a fixed static band must hold the kinetic one: bound fk_mean by it
-    for j, n in enumerate(names):
-        if n.endswith(".fk_mean"):
-            b = start.bodies[int(n[4:n.index(".")]) - 1]
-            if f"{n[:-8]}.fs_mean" not in names and not _follows(b):
-                upper[j] = b.fs_mean / scale_all[j]
-    # a Stribeck velocity far below its start is below what the record resolves, and the
-    # slope of its map would shrink the RK4 step without bound: keep it above 1 % of it
-    # (and above a fixed |v_s_delta|, so both branches keep a positive one)
-    for j, n in enumerate(names):
-        if n.endswith(".v_s"):
-            b = start.bodies[int(n[4:n.index(".")]) - 1]
-            held = 0.0 if f"{n}_delta" in names else 1.01 * abs(b.v_s_delta) / scale_all[j]
-            lower[j] = max(lower[j], 0.01 * z0[j], held)
-    z0 = np.clip(z0, lower + 1e-9 * np.abs(z0 + 1e-3), upper)
-
-    sigma = [np.array([_channel_noise(rec.channels[c]) for c in p.channels])
-             for p, rec in zip(problems, recs, strict=True)]
-    fit = _Fit(problems, index, recs, sigma)
-    if hold:
-        # a prior of one start value's size on each shared parameter: a parameter the
-        # short horizon does not excite (a gap never closed yet) stays at its start
-        # instead of wandering off; an excited one is set by the data (weights 1/σ
-        # over hundreds of samples)
-        fit.prior = z0[:len(names)].copy()
-    with threadpool_limits(limits=1):
-        sol = _solve(fit, z0, lower, upper, max_nfev)
-        # weights from the first fit's residuals: each channel by its own noise level
-        raw = fit.raw_residuals(sol.x)
-        fit.sigma = _pooled_sigma(problems, raw)
-        fit.quanta = _quanta(recs, fit, sol.x)
-        sol = _solve(fit, sol.x, lower, upper, max_nfev)
-        if fit.quanta is not None:  # the encoder noise again, from the nearer positions
-            fit.quanta = _quanta(recs, fit, sol.x)
-        noise_info = None
-        fitter = _noise_fitter() if noise_model else None
-        if fitter is not None:
-            raw = fit.raw_residuals(sol.x)
-            fit.sigma = _pooled_sigma(problems, raw)
-            fit.filters = [[fitter(res[c] / fit.sigma[r][c]) for c in range(res.shape[0])]
-                           for r, res in enumerate(raw)]
-            noise_info = {f"{p.channels[c]}" + ("" if len(recs) == 1 else f"@{r + 1}"):
-                          fit.filters[r][c].to_dict()
-                          for r, p in enumerate(problems) for c in range(len(p.channels))}
-            sol = _solve(fit, sol.x, lower, upper, max_nfev)
-    return {"sol": sol, "fit": fit, "problems": problems, "index": index,
-            "all_names": all_names, "scale_all": scale_all, "states0": states0,
-            "lower": lower, "upper": upper, "noise_info": noise_info}
-
-
-def _pooled_sigma(problems, raw) -> list[np.ndarray]:
-    """Return the residual rms of each channel name over all records.
-
-    Pooled: a short stuck piece alone would fit its quantised samples exactly and get an
-    infinite weight.
-    """
-    sums: dict[str, list[float]] = {}
-    for prob, res in zip(problems, raw, strict=True):
-        for c, ch in enumerate(prob.channels):
-            acc = sums.setdefault(ch, [0.0, 0.0])
-            acc[0] += float(res[c] @ res[c])
-            acc[1] += res.shape[1]
-    rms = {ch: math.sqrt(a / n) if a > 0 else 1e-12 for ch, (a, n) in sums.items()}
-    return [np.array([rms[ch] for ch in prob.channels]) for prob in problems]
-
-
-def _follows(b) -> bool:
-    return abs(b.fs_mean - b.fk_mean - b.ripple_amplitude) <= 1e-12 * max(1.0, b.fk_mean)
-
-
-def _state_scale(name: str, rec: DriveRecord) -> float:
-    spans = [float(np.ptp(y)) for c, y in rec.channels.items() if c[0] == name[-2]]
-    if name.endswith(".x0"):
-        return max(spans + [1e-3]) or 1.0
-    if not spans:  # velocity scale from the positions' rate
-        spans = [float(np.ptp(np.diff(y))) * rec.fs for c, y in rec.channels.items()
-                 if c[0] == "x"]
-    return max(spans + [1e-3]) or 1.0
-
-
-def _solve(fit: _Fit, z0, lower, upper, max_nfev, restarts: int = 4):
-    lo = np.where(np.isfinite(lower), lower, -np.inf)
-    try:
-        sol = None
-        for _ in range(restarts):
-            # a fresh trust region: where the event pattern changes near the optimum the
-            # linear model fails for a step, the region collapses and the solver stops
-            # on xtol short of the minimum; a restart from there goes on
-            new = least_squares(fit.residual, z0 if sol is None else sol.x,
-                                jac=fit.jacobian, bounds=(lo, upper), method="trf",
-                                x_scale="jac", max_nfev=max_nfev, xtol=1e-10, ftol=1e-10,
-                                gtol=1e-10)
-            done = sol is not None and new.cost > (1.0 - 1e-6) * sol.cost
-            if sol is not None:
-                new.nfev += sol.nfev
-            sol = new
-            if done or sol.status in (1, 2):  # gtol or ftol: converged
-                break
-        return sol
-    except ValueError as exc:  # non-finite residual or Jacobian
-        raise IdentificationError(f"the drive fit failed ({exc}); start nearer the truth "
-                                  "or estimate fewer parameters") from None
 
 
 def _result(start, base, names, all_names, theta, cov, recs, problems, states0, at_bound,
