@@ -166,8 +166,9 @@ def main() -> None:
         covered = "".join("1" if c else "0" for c in np.abs(val - true) <= 1.96 * se)
         within = bool(np.all(np.abs(errors[-1]) <= limit))
         accepted += within
+        worst = int(np.argmax(np.abs(errors[-1])))
         print(f"run {seed}: {times[-1]:.1f} s, covered {covered}, max |error| "
-              f"{100 * np.max(np.abs(errors[-1])):.2f} % ({names[int(np.argmax(np.abs(errors[-1])))]})"
+              f"{100 * abs(errors[-1][worst]):.2f} % ({names[worst]})"
               f"{'' if within else ', outside the acceptance'}"
               + (f", {info['n_pieces']} pieces of {info['length']:g} s "
                  f"({info['pieces_not_white']} of {info['piece_channels']} channels not white"
