@@ -107,3 +107,24 @@ def test_plateau_means_drifting_between_plateaus_are_warned():
     assert _scatter_warning("coulomb_viscous", "plus", drifted)
     # honest plateaus: chi2 with 3 dof exceeds its 1 % point in 1 % of cases; seeded here
     assert not _scatter_warning("coulomb_viscous", "plus", branch(0.0))
+
+
+def test_scattered_branch_error_bars_carry_students_t():
+    # closed form: a straight-line fit of 5 points with known error bars. Where the χ²
+    # test flags the scatter, the standard errors are the Birge-scaled least-squares ones
+    # times t_{0.975,3}/1.96 = 3.182/1.960 (Student's interval from 3 degrees of freedom)
+    from driveid.identify.friction.friction_map import SCATTER_P, _fit_branch
+    from driveid.signal.steady import SteadySegment
+
+    speeds = np.array([0.01, 0.02, 0.04, 0.07, 0.1])
+    se = np.full(speeds.size, 0.02)
+    wander = np.array([0.3, -0.2, 0.25, -0.3, 0.1])  # far beyond the 0.02 N error bars
+    pts = [SteadySegment(0, 100, v, 1e-4, 3.0 + 50.0 * v + w, s, 100)
+           for v, w, s in zip(speeds, wander, se, strict=True)]
+    res = _fit_branch("coulomb_viscous", pts)
+    assert res["scatter_p"] < SCATTER_P
+    a = np.column_stack([np.ones(5), speeds]) / se[:, None]
+    plain = np.sqrt(np.diag(np.linalg.inv(a.T @ a) * res["chi2_red"]))
+    factor = 3.182446305284263 / 1.959964
+    assert res["stderr"]["Fc"] == pytest.approx(plain[0] * factor, rel=1e-5)
+    assert res["stderr"]["Fv"] == pytest.approx(plain[1] * factor, rel=1e-5)
