@@ -70,6 +70,9 @@ def test_measured_piece_states_read_the_gap_from_the_positions():
     only_motor = [DriveRecord(t=p.t, u=p.u, channels={"x1": p.channels["x1"]}) for p in pieces]
     kept = measured_states(only_motor, far)
     assert all(x0[1] == 9.0 and v0[1] == 9.0 for x0, v0 in kept)
+    # so does a locked body (it must start at rest), measured or not
+    held = measured_states(pieces, far, locked=[False, True])
+    assert all(x0[1] == 9.0 and v0[1] == 9.0 and x0[0] != 9.0 for x0, v0 in held)
 
 
 def test_pieces_stage_runs_and_its_error_bars_cover():

@@ -96,15 +96,16 @@ def piece_states(problems, thetas, origin) -> list[tuple[np.ndarray, np.ndarray]
 START_SAMPLES = 21
 
 
-def measured_states(pieces, fallback) -> list[tuple[np.ndarray, np.ndarray]]:
+def measured_states(pieces, fallback, locked=None) -> list[tuple[np.ndarray, np.ndarray]]:
     """Return each piece's start state as its measured channels show it.
 
-    The whole-record fit can sit in a poor minimum whose simulation drifts from the record
-    (the benchmark's two-body drive, seeds 38 and 60: c_2 -50 %, k -6 %, a residual 6 times
-    the noise, from the truth as well as from 35 % off); the states it passes through then
-    put a load on the wrong side of its gap, and the pieces' fit stays in a poor minimum of
-    its own (c_2 -24 %, 8 standard errors off; 31 % more squared residual than from the true
-    states). A measured position reads the gap directly.
+    The whole-record fit can sit in a poor minimum whose simulation drifts from the record;
+    the states it passes through may then put a load on the wrong side of its gap, where
+    the pieces' fit cannot follow. A measured position reads the gap directly. As the
+    second candidate of each piece's start (the better kept) it took the benchmark's
+    two-body drive from 87 to 92 of 100 runs within 5 % (friction 10 %), seeds 20, 23, 38
+    among them; it does not help where the pieces' objective itself has the poor minimum
+    (seeds 35 and 60: c_2 -17 % and -34 %; docs/drive-fit.md).
 
     Parameters
     ----------
@@ -112,6 +113,8 @@ def measured_states(pieces, fallback) -> list[tuple[np.ndarray, np.ndarray]]:
         The pieces (from :func:`cut_pieces`).
     fallback : sequence of (ndarray, ndarray)
         Per piece the simulated start state, kept for every body without a measured channel.
+    locked : sequence of bool, optional
+        Per body, locked (kept at its fallback: a locked body starts at rest).
 
     Returns
     -------
@@ -128,7 +131,7 @@ def measured_states(pieces, fallback) -> list[tuple[np.ndarray, np.ndarray]]:
         velocity_measured = set()
         for ch, y in piece.channels.items():
             kind, body = channel_index(ch)
-            if body >= x0.size or m < 4:
+            if body >= x0.size or m < 4 or (locked is not None and locked[body]):
                 continue
             if kind == "x":
                 c = np.polyfit(t, y[:m], 2)

@@ -368,7 +368,8 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
         # parameters towards a local minimum of the joint fit; from the simulated and from
         # the measured state, the better kept piece by piece
         tried = []
-        for cand in (simulated, measured_states(cut, simulated)):
+        locked = [b.locked for b in start.bodies]
+        for cand in (simulated, measured_states(cut, simulated, locked)):
             pre = _stage(cut, whole, start, [], every_state, None, None, input_body, use_u,
                          torque, parallel, max_nfev, False, cand, progress=progress)
             tried.append((piece_costs(pre["fit"], pre["sol"].x, noise),
