@@ -39,8 +39,10 @@ parameter error into its position. The fit first fits the first ``segment`` seco
 each record (0.5 s), then twice as much, and so on, then the whole records, each stage
 starting the next; in the short stages a loose prior (one start value wide, in the scaled
 parameters) holds what the horizon does not yet excite, e.g. a gap not yet closed. Each
-least-squares pass restarts its trust region (up to four times) where it stopped on the
-step tolerance short of a stationary point. Multiple shooting (segments with their own
+least-squares pass restarts its trust region (up to four times) where it stopped short of a
+stationary point; a pass ends when an accepted step lowers the noise-scaled cost by less
+than :data:`~driveid.identify.drive._drive_stage.COST_TOL` (1e-3: near a kinked minimum the
+steps shrink fourfold and the rest is worth ~0.03 standard errors). Multiple shooting (segments with their own
 initial states) was tried and converged worse: a segment's start velocity is poorly known
 where the load flies inside the gap.
 
