@@ -101,6 +101,24 @@ def test_pieces_stage_runs_and_its_error_bars_cover():
     assert np.isfinite(est.value("body1.x0")) and "body1.x0@2" not in est.params
 
 
+def test_a_poor_whole_record_fit_is_warned_before_its_pieces(monkeypatch):
+    # the rule's wiring (its threshold of 6 is from the 100-run benchmark, docs/drive-fit.md):
+    # the same 2 s record as above, whose whole-record residual is a few times the noise,
+    # warned with the threshold below it and not with the threshold above it
+    import driveid.identify.drive.drive_fit as drive_fit
+
+    truth = _two_body()
+    start, _, _ = with_values(truth, _ZERO, _ZERO, {
+        n: get_value(truth, _ZERO, _ZERO, n) * (1.2 if k % 2 else 0.8)
+        for k, n in enumerate(_NAMES)})
+    est = estimate_drive(_record(4), start, estimate=_NAMES, pieces=0.5)
+    ratio = est.diagnostics["pieces"]["whole_record_residual_to_noise"]
+    assert ratio < drive_fit.POOR_WHOLE_RECORD and not est.warnings
+    monkeypatch.setattr(drive_fit, "POOR_WHOLE_RECORD", 0.5 * ratio)
+    est = estimate_drive(_record(4), start, estimate=_NAMES, pieces=0.5)
+    assert any("whole-record fit left a residual" in w for w in est.warnings), est.warnings
+
+
 def test_pieces_option_is_checked():
     rec = _record(0, duration=0.5)
     with pytest.raises(ParameterError, match="pieces must be a length"):
