@@ -106,14 +106,17 @@ def _one_fit(seed: int, start_off: float, noise: float, counts_per_rev: float,
     t0 = time.perf_counter()
     est = estimate_drive(rec, start, estimate=names, pieces=pieces)
     seconds = time.perf_counter() - t0
+    info = dict(est.diagnostics["pieces"], warned=bool(est.warnings))
     return (seconds, np.array([est.value(n) for n in names]),
             np.array([est.stderr(n) for n in names]), est.diagnostics["n_simulations"],
-            est.diagnostics["pieces"])
+            info)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=100)
+    ap.add_argument("--first-seed", type=int, default=0,
+                    help="seed of the first realisation (fresh seeds: another range)")
     ap.add_argument("--start-off", type=float, default=0.35)
     ap.add_argument("--counts-per-rev", type=float, default=8000.0,
                     help="encoder resolution; 0: no quantisation")
@@ -143,7 +146,7 @@ def main() -> None:
     accepted = 0
     errors, times, ses, vals, whole = [], [], [], [], []
     work = [(seed, args.start_off, args.noise, args.counts_per_rev, args.design, None, pieces)
-            for seed in range(args.runs)]
+            for seed in range(args.first_seed, args.first_seed + args.runs)]
     pool = None
     if args.workers > 1:
         from concurrent.futures import ProcessPoolExecutor
@@ -153,7 +156,9 @@ def main() -> None:
         outcomes = pool.map(_one_fit, *zip(*work, strict=True))
     else:
         outcomes = (_one_fit(*w) for w in work)
-    for seed, (seconds, val, se, _, info) in enumerate(outcomes):
+    warned = [0, 0]  # runs warned; of them outside the acceptance
+    quiet_outside = 0
+    for seed, (seconds, val, se, _, info) in enumerate(outcomes, start=args.first_seed):
         times.append(seconds)
         if info["done"]:
             whole.append(([info["whole_record_values"][n] for n in names],
@@ -166,10 +171,14 @@ def main() -> None:
         covered = "".join("1" if c else "0" for c in np.abs(val - true) <= 1.96 * se)
         within = bool(np.all(np.abs(errors[-1]) <= limit))
         accepted += within
+        warned[0] += info["warned"]
+        warned[1] += info["warned"] and not within
+        quiet_outside += not info["warned"] and not within
         worst = int(np.argmax(np.abs(errors[-1])))
         print(f"run {seed}: {times[-1]:.1f} s, covered {covered}, max |error| "
               f"{100 * abs(errors[-1][worst]):.2f} % ({names[worst]})"
               f"{'' if within else ', outside the acceptance'}"
+              f"{', warned' if info['warned'] else ''}"
               + (f", {info['n_pieces']} pieces of {info['length']:g} s "
                  f"({info['pieces_not_white']} of {info['piece_channels']} channels not white"
                  + (f"; halved from {info['halved_from']['length']:g} s, "
@@ -193,7 +202,9 @@ def main() -> None:
               f"{100 * np.max(np.abs(errors[:, j])):12.3f} "
               f"{np.mean(vals[:, j] - true[j]) / mid_se[j]:8.2f} {sd[j] / mid_se[j]:6.2f} "
               f"{hits[j] / args.runs:9.2f}")
-    print(f"within the acceptance (friction 10 %, the rest 5 %): {accepted} of {args.runs}")
+    print(f"within the acceptance (friction 10 %, the rest 5 %): {accepted} of {args.runs}; "
+          f"warned {warned[0]} (of them outside: {warned[1]}); outside without a warning: "
+          f"{quiet_outside}")
     print(f"binomial sd of a 95 % coverage over {args.runs} runs: "
           f"{100 * np.sqrt(0.95 * 0.05 / args.runs):.1f} %")
     if whole:
