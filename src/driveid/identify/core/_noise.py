@@ -43,7 +43,7 @@ from scipy.signal import lfilter
 from driveid.errors import IdentificationError
 
 __all__ = ["NoiseModel", "white_noise", "fit_noise_model", "hac_covariance", "segment_lengths",
-           "spectral_lines"]
+           "spectral_lines", "fit_lines"]
 
 #: Highest AR order tried [-]; band-limited noise needs ~10-40, mains hum 2-4 per line.
 MAX_ORDER = 40
@@ -426,18 +426,38 @@ def spectral_lines(y: np.ndarray, *, max_lines: int = 3, level: float = 1e-3) ->
     >>> spectral_lines(y)
     [0.1]
     """
+    return fit_lines(y, max_lines=max_lines, level=level)[0]
+
+
+def fit_lines(y: np.ndarray, *, max_lines: int = 3,
+              level: float = 1e-3) -> tuple[list[float], np.ndarray]:
+    """Find the lines of :func:`spectral_lines` and take them and the mean out of ``y``.
+
+    Parameters
+    ----------
+    y : ndarray, shape (n,)
+        The record [any unit], uniformly sampled.
+    max_lines, level
+        As in :func:`spectral_lines`.
+
+    Returns
+    -------
+    (list of float, ndarray)
+        The line frequencies [cycles per sample] and the residual of ``y`` about its mean
+        and those lines (least squares) [unit]; the number of fitted coefficients is
+        ``1 + 2·len(lines)``.
+    """
     y = np.asarray(y, float)
     n = y.size
     t = np.arange(n)
     cols = [np.ones(n)]
     found: list[float] = []
+    r = y - np.mean(y)
     m = (n - 1) // 2
     if m < 2 * LINE_NEIGHBOURS + 4:
-        return found
+        return found, r
     threshold = 2.0 * math.log(m / level)
     for _ in range(max_lines):
-        x = np.column_stack(cols)
-        r = y - x @ np.linalg.lstsq(x, y, rcond=None)[0]
         spec = np.abs(np.fft.rfft(r)[1:m + 1]) ** 2
         ratio = np.zeros(m)
         for j in range(3, m - 3):
@@ -451,4 +471,6 @@ def spectral_lines(y: np.ndarray, *, max_lines: int = 3, level: float = 1e-3) ->
         freq = (j + 1) / n
         found.append(freq)
         cols += [np.cos(2 * math.pi * freq * t), np.sin(2 * math.pi * freq * t)]
-    return found
+        x = np.column_stack(cols)
+        r = y - x @ np.linalg.lstsq(x, y, rcond=None)[0]
+    return found, r

@@ -369,7 +369,7 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
     zs = [fin["sol"].x[idx] for idx in st["index"]]
     every_state = [n for n in parameter_names(start) if n.endswith((".x0", ".v0"))]
     noise = {ch: max(_channel_noise(rec.channels[ch]) for rec in recs if ch in rec.channels)
-             for rec in recs for ch in rec.channels}
+             for ch in {c for rec in recs for c in rec.channels}}
     first = None
     while True:
         cut, origin = cut_pieces(recs, length)

@@ -29,7 +29,7 @@ from scipy.stats import chi2
 from scipy.stats import t as student_t
 
 from driveid.errors import FileFormatError, IdentificationError, ParameterError, RecordError
-from driveid.identify.core._noise import fit_noise_model, spectral_lines
+from driveid.identify.core._noise import fit_lines, fit_noise_model
 from driveid.identify.core.estimate import Estimate, Parameter
 from driveid.io.record import Record
 from driveid.models.friction import (
@@ -204,7 +204,7 @@ def _plateau_mean(y: np.ndarray) -> tuple[float, float]:
 
     ``sqrt(S(0)/n)`` with the long-run variance ``S(0)`` of an AR model (Burg, order by BIC)
     of the demeaned samples (issue 24), after sinusoidal lines that stand out of the noise
-    spectrum (mains hum, :func:`~driveid.identify.core._noise.spectral_lines`) are fitted
+    spectrum (mains hum, :func:`~driveid.identify.core._noise.fit_lines`) are fitted
     with the mean: a line of an integer period makes the AR model seasonal, with a pole
     near zero frequency. The lag-1 (AR(1)) effective count of
     :func:`~driveid.signal.steady.segment_mean` reads a 25 Hz low-pass or a 50 Hz line as
@@ -217,14 +217,9 @@ def _plateau_mean(y: np.ndarray) -> tuple[float, float]:
     mean = float(np.mean(y))
     if not np.ptp(y) > 0:  # a noise-free (simulated) plateau: nothing to model
         return segment_mean(y)
-    t = np.arange(y.size)
-    cols = [np.ones(y.size)]
-    for freq in spectral_lines(y):
-        cols += [np.cos(2.0 * math.pi * freq * t), np.sin(2.0 * math.pi * freq * t)]
-    x = np.column_stack(cols)
-    beta = np.linalg.lstsq(x, y, rcond=None)[0]
+    lines, residual = fit_lines(y)
     try:
-        model = fit_noise_model(y - x @ beta, n_params=x.shape[1])
+        model = fit_noise_model(residual, n_params=1 + 2 * len(lines))
     except IdentificationError:  # too few samples for a noise model
         return segment_mean(y)
     n_eff = model.n_eff
