@@ -13,7 +13,8 @@ prints
   ``--throughput-records``: records/s, efficiency against workers x the in-process rate,
   processor time per record and overhead per task (issue 28), and what 100 000 axes per
   8-hour shift needs; ``--methods output-error logdec`` for the costly and the cheapest
-  estimator.
+  estimator; ``--plain``: the same records in N plain processes at once and a pure-Python
+  loop, the machine's own scaling (efficiency = one process's time / N processes' time).
 
 Run: ``MPLBACKEND=Agg .venv/bin/python benchmarks/bench_fleet.py [--axes 200] [--months 12]``.
 """
@@ -40,6 +41,44 @@ def _throughput(files, n_workers, folder, batch_size=None, method="output-error"
     return identify_many([str(f) for f in files], method=method,
                          method_options={"mass": 1.0}, catalog=folder / name,
                          n_workers=n_workers, progress=False, batch_size=batch_size)
+
+
+def _plain_share(args):
+    """One process's share: warm up, wait for the others, time its records [s/record]."""
+    files, method, barrier = args
+    identify_file(files[0], method=method, method_options={"mass": 1.0})
+    barrier.wait()
+    t0 = time.perf_counter()
+    if method == "pure-python":  # the machine's own ceiling for CPU-bound interpreter work
+        for _ in files:
+            sum(i * i % 7 for i in range(200_000))
+    else:
+        for f in files:
+            identify_file(f, method=method, method_options={"mass": 1.0})
+    return (time.perf_counter() - t0) / len(files)
+
+
+def _plain_rows(sample, workers, method):
+    """The same records in N plain processes at once (no Dask, no catalogue): the machine's
+    scaling of this work, the ceiling the Dask rows are measured against."""
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    ctx = get_context("fork")
+    share = max(1, len(sample) // max(workers))  # each process the same work, at any N
+    for what in (method, "pure-python"):
+        base = None
+        for n in sorted(set((1, *workers))):
+            with ctx.Manager() as manager, ProcessPoolExecutor(n, mp_context=ctx) as pool:
+                barrier = manager.Barrier(n)
+                per = list(pool.map(_plain_share, [(sample[i * share:(i + 1) * share] or
+                                                    sample[:1], what, barrier)
+                                                   for i in range(n)]))
+            wall = sum(per) / n
+            base = base or wall
+            print(f"{'plain ' + str(n) + ' process(es), ' + what:34s} {'-':>5s} "
+                  f"{n / wall if what != 'pure-python' else float('nan'):9.2f} "
+                  f"{base / wall:10.2f}", flush=True)
 
 
 def _throughput_study(files, n_records, folder, workers=(1, 2), method="output-error"):
@@ -75,7 +114,8 @@ def _throughput_study(files, n_records, folder, workers=(1, 2), method="output-e
         summary = _throughput(chunk, n_workers, folder, batch, method)
         rate = summary.records_per_second
         overhead = (summary.elapsed * n_workers - len(chunk) * serial_wall) / summary.n_tasks
-        label = f"Dask {n_workers} worker(s), " + ("1 record/task" if batch == 1 else "batched")
+        label = f"Dask {n_workers} worker(s), " + ("1 record/task" if batch == 1 else
+                                                    "guided batches")
         print(f"{label:34s} {summary.n_tasks:5d} {rate:9.2f} "
               f"{rate / (n_workers * serial):10.2f} "
               f"{summary.cpu_seconds_per_record * 1e3:10.0f} {overhead * 1e3:16.1f}")
@@ -99,6 +139,9 @@ def main() -> None:
     parser.add_argument("--skip-detection", action="store_true")
     parser.add_argument("--workers", type=int, nargs="+", default=[1, 2],
                         help="Dask worker counts of the batched throughput rows.")
+    parser.add_argument("--plain", action="store_true",
+                        help="Also run the records in N plain processes at once (no Dask) and "
+                             "a pure-Python loop: the machine's own scaling, for reference.")
     parser.add_argument("--methods", nargs="+", default=["output-error"],
                         choices=["output-error", "logdec", "auto"],
                         help="Estimators of the throughput study, each in turn (logdec is "
@@ -120,6 +163,8 @@ def main() -> None:
         for method in args.methods:
             _throughput_study(files, args.throughput_records, folder, tuple(args.workers),
                               method)
+            if args.plain:
+                _plain_rows(files[: args.throughput_records], tuple(args.workers), method)
     if args.skip_detection:
         return
     # the whole fleet on 2 workers into one catalogue

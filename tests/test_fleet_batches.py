@@ -70,3 +70,17 @@ def test_method_auto_recognises_free_decays_and_agrees_with_the_direct_fit(fleet
         a, d = auto["result"]["parameters"][name], direct["result"]["parameters"][name]
         # the same estimator on the same record: equal to solver accuracy
         assert a["value"] == pytest.approx(d["value"], rel=1e-6)
+
+
+@pytest.mark.parametrize(("n", "workers"), [(1, 16), (7, 2), (320, 16), (1600, 16), (5000, 4)])
+def test_guided_batches_shrink_to_single_records(n, workers):
+    """Every record once, batches never growing, none above the cap, and the last wave
+    (one record per worker at least) single records, so no worker waits a batch's time."""
+    from driveid.fleet import _MAX_AUTO_BATCH, _batch_sizes
+
+    sizes = _batch_sizes(n, workers, None)
+    assert sum(sizes) == n
+    assert all(a >= b for a, b in zip(sizes, sizes[1:]))
+    assert max(sizes) <= _MAX_AUTO_BATCH
+    assert sizes[-min(n, workers):] == [1] * min(n, workers)
+    assert _batch_sizes(n, workers, 3) == [3] * (n // 3) + ([n % 3] if n % 3 else [])

@@ -333,9 +333,9 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "ou
         Show a progress bar on stderr.
     batch_size : int, optional
         Records per Dask task [-]: each task costs the scheduler and the worker a few
-        milliseconds whatever its size, so records travel in batches. Default: about four
-        batches per worker, at most 16 records each (a lost or slow batch delays no more
-        than that).
+        milliseconds whatever its size, so records travel in batches. Default: batches that
+        shrink as the work runs out (each about 1/(2 x workers) of the records left, at most
+        32, the last ones single records), so no worker waits long for the others at the end.
 
     Returns
     -------
@@ -385,12 +385,11 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "ou
             if client is None:
                 client = _start_client(scheduler, n_workers, owned)
             workers = len(client.scheduler_info().get("workers", {}))
-            client.run(_estimator, method)  # import (and compile) before the clock starts
-            size = batch_size or max(1, min(_MAX_AUTO_BATCH,
-                                            len(todo) // (_BATCHES_PER_WORKER * max(workers, 1))))
+            client.run(_warm_worker, method)  # import (and compile) before the clock starts
+            sizes = _batch_sizes(len(todo), workers, batch_size)
             start = time.perf_counter()
             counts = _run(client, todo, located, cat, method, options, record_kwargs,
-                          machine_type, retries, progress, size)
+                          machine_type, retries, progress, sizes)
             elapsed = time.perf_counter() - start
     finally:
         for thing in reversed(owned):
@@ -425,10 +424,46 @@ def _start_client(scheduler: str | None, n_workers: int, owned: list[Any]) -> An
     return client
 
 
-#: Automatic batches: about this many per worker (the tail of the run stays balanced) ...
-_BATCHES_PER_WORKER = 4
-#: ... of at most this many records (a batch lost with its worker is re-run whole).
-_MAX_AUTO_BATCH = 16
+#: Automatic batches: each holds about 1/(this x workers) of the records still to go ...
+_GUIDED_SHARE = 2
+#: ... and at most this many records (a batch lost with its worker is re-run whole).
+_MAX_AUTO_BATCH = 32
+
+
+def _batch_sizes(n_records: int, n_workers: int, batch_size: int | None) -> list[int]:
+    """Records per task, in submission order [-].
+
+    A given ``batch_size`` is used throughout. Otherwise the sizes shrink as the work runs
+    out (guided self-scheduling): each batch takes ``1 / (2 x workers)`` of the records left,
+    capped at 32, down to single records, so the first tasks amortise the few milliseconds
+    each costs and the last wave is one record deep — equal batches left 16 workers idle
+    for up to a batch's time at the end (issue 28).
+
+    Examples
+    --------
+    >>> _batch_sizes(10, 1, 4)
+    [4, 4, 2]
+    >>> _batch_sizes(20, 2, None)
+    [5, 3, 3, 2, 1, 1, 1, 1, 1, 1, 1]
+    """
+    if batch_size is not None:
+        return [min(batch_size, n_records - i) for i in range(0, n_records, batch_size)]
+    sizes, left = [], n_records
+    while left > 0:
+        size = max(1, min(_MAX_AUTO_BATCH, left // (_GUIDED_SHARE * max(n_workers, 1))))
+        sizes.append(size)
+        left -= size
+    return sizes
+
+
+def _warm_worker(method: str) -> None:
+    """Import what a task needs (the estimator, the reader's pandas) before the clock starts."""
+    import pandas  # noqa: F401 — the reader imports it on the first record (0.2 s)
+
+    import driveid._json  # noqa: F401
+    import driveid.io  # noqa: F401
+
+    _estimator(method)
 
 
 class _CatalogWriter:
@@ -485,7 +520,7 @@ class _CatalogWriter:
 
 
 def _run(client, todo, located, cat, method, options, record_kwargs, machine_type, retries,
-         progress, batch_size) -> dict[str, Any]:
+         progress, sizes) -> dict[str, Any]:
     import hashlib
 
     from distributed import as_completed
@@ -495,8 +530,11 @@ def _run(client, todo, located, cat, method, options, record_kwargs, machine_typ
 
     futures = {}
     items = list(todo.items())
-    for i in range(0, len(items), batch_size):
-        chunk = items[i:i + batch_size]
+    starts = [0]
+    for size in sizes:
+        starts.append(starts[-1] + size)
+    for i, j in zip(starts[:-1], starts[1:], strict=True):
+        chunk = items[i:j]
         key = hashlib.sha256("".join(sha for sha, _ in chunk).encode()).hexdigest()[:32]
         future = client.submit(identify_files, [str(path) for _, path in chunk], method=method,
                                method_options=options, record_options=record_kwargs,

@@ -1,4 +1,7 @@
-"""Regression tests of the oscillation peak finder's start-of-record handling."""
+"""Regression tests of the oscillation peak finder (start of record) and its blocked DFT."""
+
+import numpy as np
+import pytest
 
 from driveid.signal.peaks import find_oscillation_peaks
 from driveid.sim.drive import BodyParams, DriveParams, PDFeedback, simulate_drive
@@ -38,3 +41,17 @@ def test_batched_refinement_equals_the_scalar_fit():
     assert np.max(np.abs(many[1] - one[1])) < 1e-9  # value: 1e-5 of the 1e-4 noise
     # the standard errors come from the same fit: equal to a few parts in 1e4
     assert np.allclose(many[2], one[2], rtol=1e-3) and np.allclose(many[3], one[3], rtol=1e-4)
+
+
+@pytest.mark.parametrize("n", [1, 700, 4096, 9000])
+def test_blocked_dft_equals_the_direct_sum(n):
+    """``_dft_at`` against the defining sum, for records shorter than, equal to and longer
+    than its block (a short record uses a table only as wide as itself, issue 28)."""
+    from driveid.signal.peaks import _dft_at
+
+    rng = np.random.default_rng(n)
+    x = rng.normal(size=n)
+    cycles = np.array([0.0, 0.013, 0.25, 0.4999])
+    direct = np.exp(-2j * np.pi * np.outer(cycles, np.arange(n))) @ x
+    # both are sums of n terms of size ~1: rounding ~1e-16 sqrt(n) n, far below 1e-9
+    np.testing.assert_allclose(_dft_at(x, cycles), direct, rtol=0, atol=1e-9 * max(1, n))

@@ -43,8 +43,8 @@ def fleet_group():
 @click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
               help="Use an existing Dask scheduler instead of a local cluster.")
 @click.option("--batch-size", type=BoundedInt(10_000, min=1), default=None,
-              help="Records per Dask task (default: about 4 batches per worker, at most 16 "
-                   "records each).")
+              help="Records per Dask task (default: batches that shrink as the work runs out, "
+                   "at most 32 records, the last ones single records).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @catalog_option
 @record_options
