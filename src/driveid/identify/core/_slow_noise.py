@@ -66,8 +66,13 @@ def _whittle(ratio: np.ndarray, rel_f: np.ndarray) -> tuple[float, float, float]
     return math.exp(best.x[0]), float(best.x[1]), max(0.0, 2.0 * (base - best.fun))
 
 
-def _through_fit(m_map: np.ndarray, kept: list[int], scale: float, alpha: float) -> np.ndarray:
-    """``M Σ Mᵀ`` for the excess spectrum ``scale (ν m)^-α`` (flat below ν m = 1/2), per record."""
+def _through_fit(m_map: np.ndarray, kept: list[int], scale: float, alpha: float,
+                 ar: Sequence[float] = ()) -> np.ndarray:
+    """``M Σ Mᵀ`` for the excess spectrum ``scale (ν m)^-α`` (flat below ν m = 1/2), per record.
+
+    With ``ar`` the map acts on unwhitened rows, whose excess is the prewhitened one over
+    ``|A(ν)|²``, ``A(ν) = 1 - Σ a_j e^{-2πiνj}`` (the AR model's whitening filter).
+    """
     k = m_map.shape[0]
     out = np.zeros((k, k))
     start = 0
@@ -77,8 +82,12 @@ def _through_fit(m_map: np.ndarray, kept: list[int], scale: float, alpha: float)
         if m < 2:
             continue
         size = 1 << int(math.ceil(math.log2(8 * m)))
-        nu = np.abs(np.fft.fftfreq(size))  # cycles per sample
-        spec = scale * np.maximum(nu * m, FLAT_BELOW) ** (-alpha)
+        freq = np.fft.fftfreq(size)  # cycles per sample
+        spec = scale * np.maximum(np.abs(freq) * m, FLAT_BELOW) ** (-alpha)
+        if len(ar):
+            lags = np.arange(1, len(ar) + 1)
+            spec = spec / np.abs(1.0 - np.exp(-2j * np.pi * np.outer(freq, lags)) @ np.asarray(
+                ar, float)) ** 2
         g = np.fft.fft(block, size, axis=1)
         out += ((g * spec) @ g.conj().T).real / size
     return out
@@ -129,8 +138,9 @@ def slow_noise_covariance(jac: np.ndarray, residual: np.ndarray, noise: NoiseMod
 
 
 def excess_covariance(jac_w: np.ndarray, residual_w: np.ndarray, kept: Sequence[int], *,
-                      ordinates: int = ORDINATES,
-                      level: float | None = None) -> tuple[np.ndarray, dict]:
+                      ordinates: int = ORDINATES, level: float | None = None,
+                      unwhitened: tuple[np.ndarray, Sequence[int], NoiseModel] | None = None,
+                      ) -> tuple[np.ndarray, dict]:
     """:func:`slow_noise_covariance` on an already prewhitened Jacobian and residual.
 
     Parameters
@@ -145,6 +155,12 @@ def excess_covariance(jac_w: np.ndarray, residual_w: np.ndarray, kept: Sequence[
         Slowest Fourier frequencies of each record fitted [-].
     level : float, optional
         Significance the excess must reach [-]; default :data:`LEVEL` (0: never widen).
+    unwhitened : (ndarray, sequence of int, NoiseModel), optional
+        ``(J, lengths, model)`` when the estimate is the ordinary least-squares one of the
+        unwhitened rows ``J`` [unit per parameter unit] (records of ``lengths`` rows) and
+        ``jac_w``, ``residual_w`` are its prewhitening by ``model``: the excess is tested on
+        the prewhitened residual and taken through ``(JᵀJ)⁻¹Jᵀ`` with its spectrum over the
+        model's ``|A(ν)|²``.
 
     Returns
     -------
@@ -184,6 +200,11 @@ def excess_covariance(jac_w: np.ndarray, residual_w: np.ndarray, kept: Sequence[
     info.update(amplitude=amp, slope=alpha, p_value=p_value)
     if p_value >= (LEVEL if level is None else level):
         return extra, info
-    m_map = np.linalg.solve(upper, q.T)  # (J_wᵀJ_w)⁻¹J_wᵀ, shape (k, n_w)
     info["applied"] = True
+    if unwhitened is not None:
+        jac, lengths, model = unwhitened
+        q_raw, upper_raw = np.linalg.qr(np.asarray(jac, float))
+        return _through_fit(np.linalg.solve(upper_raw, q_raw.T), [int(m) for m in lengths],
+                            s2 * amp, alpha, model.ar), info
+    m_map = np.linalg.solve(upper, q.T)  # (J_wᵀJ_w)⁻¹J_wᵀ, shape (k, n_w)
     return _through_fit(m_map, kept, s2 * amp, alpha), info

@@ -213,27 +213,35 @@ def _gls(Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray, cov: np.ndarray, run
             theta = theta_ols
             cov = hac_covariance(Wk, yk - Wk @ theta_ols, segments=runs)
             kind = "sandwich (ordinary least squares)"
+    # noise slower than the AR model sees (1/f-like drift): its power at the record's
+    # slowest frequencies, where the offset and the Coulomb term live, taken through the
+    # fit (issue 24: offset coverage 0.35 without it; docs/validation.md). A Bartlett
+    # sandwich sees lags up to its bandwidth only, so it gets the excess too (issue 24: 1/f
+    # offset coverage 0.25 on that path without it)
+    ordinary = theta is theta_ols
+    extra, slow = _slow_excess(ordinary, Wk, yk, theta, runs, model_ols if ordinary else model,
+                               Ww, e_w, kept)
+    fit["slow_noise"] = slow
+    slow_note = ""
+    if slow["applied"] and extra.shape == cov.shape:
+        cov = cov + extra
+        kind += " + slow-noise excess"
+        slow_note = (f"the residuals hold more power at the record's slowest frequencies than "
+                     f"the AR({model.order}) noise model (excess ~ f^-{slow['slope']:.2g}, p = "
+                     f"{slow['p_value']:.2g}): the standard errors include it")
+    if not white["white"]:
         notes.append(
             f"prewhitened residuals are still not white (Ljung-Box p = {white['p_value']:.2g})"
-            ": the model misses some dynamics (compliance, backlash, a load, friction that "
-            "is not Coulomb + viscous); standard errors widened by the Newey-West sandwich"
+            + (": noise slower than an AR model (1/f-like drift, see below) or dynamics the "
+               "model misses" if slow_note else ": the model misses some dynamics")
+            + " (compliance, backlash, a load, friction that is not Coulomb + viscous); "
+            "standard errors widened by the Newey-West sandwich"
             + (f"; generalised and ordinary least squares disagree by {np.max(moved):.1f} "
                "standard errors, so the ordinary least-squares values are reported"
-               if theta is theta_ols else ""))
+               if kind.startswith("sandwich (ordinary") else ""))
         fit["warnings"].append(notes[-1])
-    if kind in ("white", "prewhitened"):
-        # noise slower than the AR model sees (1/f-like drift): its power at the record's
-        # slowest frequencies, where the offset and the Coulomb term live, taken through
-        # the fit (issue 24: offset coverage 0.35 without it; docs/validation.md)
-        extra, slow = excess_covariance(Ww, e_w, kept)
-        fit["slow_noise"] = slow
-        if slow["applied"] and extra.shape == cov.shape:
-            cov = cov + extra
-            kind += " + slow-noise excess"
-            notes.append(
-                f"the residuals hold more power at the record's slowest frequencies than the "
-                f"AR({model.order}) noise model (excess ~ f^-{slow['slope']:.2g}, p = "
-                f"{slow['p_value']:.2g}): the standard errors include it")
+    if slow_note:
+        notes.append(slow_note)
     if not cross["uncorrelated"]:
         notes.append(
             f"residuals correlate with the velocity (|rho| = {cross['max_abs']:.2f} at lag "
@@ -243,6 +251,19 @@ def _gls(Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray, cov: np.ndarray, run
     fit["adequacy"] = Adequacy(whiteness=white, cross=cross, covariance=kind, notes=tuple(notes))
     fit["system"] = (Wk, yk) if (model.is_white or theta is theta_ols) else (Ww, yw)
     return theta, cov, fit
+
+
+def _slow_excess(ordinary: bool, Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray,
+                 runs: list[int], model: NoiseModel, Ww: np.ndarray, e_w: np.ndarray,
+                 kept: list[int]) -> tuple[np.ndarray, dict[str, Any]]:
+    """Slow-noise excess of the reported fit: tested on its prewhitened residual, taken
+    through the generalised fit, or through the ordinary one where that is reported."""
+    if not ordinary or model.is_white:
+        return excess_covariance(Ww, e_w, kept)
+    jw = model.whiten(Wk, runs)
+    ew = model.whiten(yk - Wk @ theta, runs)
+    kept_o = [r - model.order for r in runs if r > model.order]
+    return excess_covariance(jw, ew, kept_o, unwhitened=(Wk, runs, model))
 
 
 def _ols(W: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:

@@ -192,8 +192,8 @@ def estimate_idim(
         prewhitened velocity, covariance kind, notes), ``slow_noise`` (the test for noise
         power at the record's slowest frequencies beyond the AR model, 1/f-like drift:
         ``amplitude``, ``slope``, ``p_value``, ``applied``; where applied its covariance is
-        added, :mod:`driveid.identify.core._slow_noise`; None where not tested: ``noise="white"``
-        or a sandwich covariance),
+        added, on the Newey–West sandwich paths too, :mod:`driveid.identify.core._slow_noise`;
+        None where not tested: ``noise="white"``),
         ``stderr_white`` (the ordinary
         least-squares standard errors, for comparison), ``cond``,
         ``relative_error_pct`` (``100·||e||/||y||``), ``error_norm``, ``error_std``,
