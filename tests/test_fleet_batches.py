@@ -80,7 +80,7 @@ def test_guided_batches_shrink_to_single_records(n, workers):
 
     sizes = _batch_sizes(n, workers, None)
     assert sum(sizes) == n
-    assert all(a >= b for a, b in zip(sizes, sizes[1:]))
+    assert all(a >= b for a, b in zip(sizes, sizes[1:], strict=False))
     assert max(sizes) <= _MAX_AUTO_BATCH
     assert sizes[-min(n, workers):] == [1] * min(n, workers)
     assert _batch_sizes(n, workers, 3) == [3] * (n // 3) + ([n % 3] if n % 3 else [])

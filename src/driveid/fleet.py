@@ -431,7 +431,7 @@ _MAX_AUTO_BATCH = 32
 
 
 def _batch_sizes(n_records: int, n_workers: int, batch_size: int | None) -> list[int]:
-    """Records per task, in submission order [-].
+    """Return the records of each task, in submission order [-].
 
     A given ``batch_size`` is used throughout. Otherwise the sizes shrink as the work runs
     out (guided self-scheduling): each batch takes ``1 / (2 x workers)`` of the records left,

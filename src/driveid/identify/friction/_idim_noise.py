@@ -256,8 +256,11 @@ def _gls(Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray, cov: np.ndarray, run
 def _slow_excess(ordinary: bool, Wk: np.ndarray, yk: np.ndarray, theta: np.ndarray,
                  runs: list[int], model: NoiseModel, Ww: np.ndarray, e_w: np.ndarray,
                  kept: list[int]) -> tuple[np.ndarray, dict[str, Any]]:
-    """Slow-noise excess of the reported fit: tested on its prewhitened residual, taken
-    through the generalised fit, or through the ordinary one where that is reported."""
+    """Return the slow-noise excess of the reported fit and its test.
+
+    Tested on the fit's prewhitened residual; taken through the generalised fit, or through
+    the ordinary one where that is reported.
+    """
     if not ordinary or model.is_white:
         return excess_covariance(Ww, e_w, kept)
     jw = model.whiten(Wk, runs)
