@@ -17,7 +17,8 @@ for each record (below), 1/f-like (AR(1) poles 0.5, 0.9, 0.99, 0.999 per sample)
 mains line (70 % of the variance) plus white noise. All records at 500 Hz. ``+q``: the
 measured position rounded to an encoder step (random phase), size per record below.
 
-``idim`` (``estimate_idim(cutoff_hz=50, decimate=1, edge=20, noise="ar")``; ``idim-white``
+``idim`` (``estimate_idim(cutoff_hz=50, decimate=1, edge=20, noise="ar")``; ``idim-dec10``
+the default decimation by 10 and edge, 290 rows of block means, what a user gets; ``idim-white``
 the same with ``noise="white"``, the ordinary least-squares error bars of before issue 24):
 6 s, ``x = 0.05 sin(0.8πt) + 0.01 sin(2.2πt)`` [m], force ``u = 10 a + 50 v + 3 sgn v − 0.5``
 [N] plus noise of sd 0.5 N on ``u`` (the force or current channel). Truth M = 10 kg,
@@ -229,6 +230,9 @@ class _Design:
 
 DESIGNS = {
     "idim": _Design(IDIM_TRUTH, _idim_records, _fit_idim, _idim_jacobians, lambda: 0.5, 5.5),
+    "idim-dec10": _Design(IDIM_TRUTH, _idim_records,
+                          lambda r: estimate_idim(r, cutoff_hz=50.0, sensitivity=False),
+                          _idim_jacobians, lambda: 0.5, 5.5),
     "idim-white": _Design(IDIM_TRUTH, _idim_records, lambda r: _fit_idim(r, "white"),
                           _idim_jacobians, lambda: 0.5, 5.5),
     "forced": _Design(FORCED_TRUTH, _forced_records, _fit_forced, _forced_jacobians,

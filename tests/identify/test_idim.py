@@ -111,8 +111,11 @@ def test_emps_symmetric_within_one_published_sigma(emps):
     assert est.diagnostics["cond"] == pytest.approx(25.9883, rel=0.01)
     assert est.diagnostics["relative_error_pct"] == pytest.approx(4.0834, rel=0.03)
     val = validate_idim(est, emps[1])
-    # published cross-test relative error 5.9824 %, cond 26.0217
-    assert val.relative_error == pytest.approx(5.9824, rel=0.03)
+    # published cross-test relative error 5.9824 %, cond 26.0217. The rows are block means
+    # now, not EMPS's Chebyshev decimation (issue 24: its stopband coloured the noise); they
+    # keep the band the Chebyshev removed above 0.8 of the new Nyquist, so the error norm
+    # holds a little more noise: 6.24 % measured, hence 5 % (was 3 %)
+    assert val.relative_error == pytest.approx(5.9824, rel=0.05)
     assert val.cond == pytest.approx(26.0217, rel=0.01)
 
 
@@ -162,8 +165,8 @@ def test_emps_command_line(emps):
 
     out = json.loads(res.stdout)
     assert out["parameters"]["M"]["value"] == pytest.approx(95.1089, abs=0.1085)
-    # published cross-test relative error 5.9824 %
-    assert out["diagnostics"]["validation"]["relative_error_pct"] == pytest.approx(5.9824, rel=0.03)
+    # published cross-test relative error 5.9824 % (5 %: block means, see above)
+    assert out["diagnostics"]["validation"]["relative_error_pct"] == pytest.approx(5.9824, rel=0.05)
 
 
 @pytest.mark.shared_data
