@@ -150,7 +150,8 @@ def idim_regressor(
     if v.size < min_len:
         raise RecordError(
             f"record too short for IDIM after dropping {cut} edge samples and decimating "
-            f"by {decimate}; need >= {min_len} samples; got {v.size}"
+            f"by {decimate}; need >= {min_len} samples; got {v.size}: record a longer run, "
+            "or lower the decimation (CLI: --decimate 1)"
         )
     # one column at a time: decimating each equals decimating the stacked n x p matrix,
     # which held p full columns plus the filter's padded copies (issue 12)
