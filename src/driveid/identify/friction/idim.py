@@ -436,11 +436,17 @@ def _warnings(params: dict[str, Parameter], names: tuple[str, ...], keep: np.nda
                 "drive cannot have: the model misses an effect of the data (backlash, "
                 "compliance, stiction, a load or an offset), or the excitation is too weak")
     diag["unphysical"] = unphysical
-    rel_se = [abs(p.stderr / p.value) for nm, p in params.items()
-              if not p.fixed and math.isfinite(p.value) and p.value != 0]
-    if any(r > 0.3 for r in rel_se):
-        out.append("some relative standard errors exceed 30 %; excite the drive "
-                   "over a wider range of velocity and acceleration")
+    loose = {nm: abs(p.stderr / p.value) for nm, p in params.items()
+             if not p.fixed and math.isfinite(p.value) and p.value != 0
+             and abs(p.stderr / p.value) > 0.3}
+    if loose:
+        which = ", ".join(f"{nm} ±{100 * r:.0f} %" for nm, r in loose.items())
+        # an offset is a force at rest: more motion does not resolve a small one
+        advice = ("excite the drive over a wider range of velocity and acceleration"
+                  if set(loose) - {"offset"} else
+                  "an offset this small is not resolved by the force noise; give it if "
+                  "known (--offset 0 for a drive without one)")
+        out.append(f"relative standard errors above 30 % ({which}): {advice}")
     return out
 
 
