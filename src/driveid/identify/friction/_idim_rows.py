@@ -64,8 +64,8 @@ def idim_regressor(
         linear filter applied to both sides, so the model holds for the means). EMPS used
         MATLAB's ``decimate`` (order-8 Chebyshev I at 0.8 of the new Nyquist, zero phase):
         its stopband left the decimated noise coloured in a way no AR model of a few hundred
-        rows follows, and IDIM's error bars covered 0.87-0.92 on white noise (sd/se up to
-        1.35, issue 24); block means keep white noise white (docs/validation.md).
+        rows follows, and IDIM's error bars covered 0.86-0.91 on white noise (sd/se up to
+        1.31, issue 24); block means keep white noise white (docs/validation.md).
     edge : int
         Samples dropped at both ends after differentiation [-]; at least
         ``3·fs/cutoff_hz`` are dropped (the filter's start-up transient).
