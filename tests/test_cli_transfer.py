@@ -132,3 +132,15 @@ def test_bad_input_is_one_error_line_exit_2(args, message):
     errors = [line for line in res.output.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and message in errors[0], res.output
     assert "Traceback" not in res.output
+
+
+def test_a_position_column_read_as_speed_names_this_commands_options(tmp_path):
+    t = np.arange(400) * 1e-3
+    src = tmp_path / "pos.csv"
+    src.write_text("t [s],x [rad],u [V]\n" + "\n".join(
+        f"{a:.4f},{np.sin(9 * a):.6f},{np.sign(np.sin(31 * a)):.1f}" for a in t) + "\n")
+    res = _run(src, "--input", "u", "--output", "x")
+    assert res.exit_code == 2
+    assert "--output-quantity position" in res.output and "--unit v=" not in res.output
+    res = _run(src, "--input", "u", "--output", "x", "--output-unit", "furlong")
+    assert res.exit_code == 2 and "--output-unit UNIT" in res.output

@@ -49,6 +49,25 @@ class _Signals:
         return dict(self.meta.get("units", {}))
 
 
+def _output_unit_problem(source: str, column: str | None, unit: str, out: str) -> str:
+    """Name the output column's unit problem in this command's options."""
+    from driveid.errors import FileFormatError
+    from driveid.io.units import to_si
+
+    other = "x" if out == "v" else "v"
+    try:
+        to_si(other, unit, source=source)
+    except FileFormatError:
+        fix = "state its unit with --output-unit UNIT"
+    else:
+        fix = ("it measures " + ("position: add --output-quantity position" if out == "v" else
+                                 "speed: drop --output-quantity position")
+               + ", or state its unit with --output-unit UNIT")
+    wanted = "speed" if out == "v" else "position"
+    return (f"{source}: the output column {column!r} (--output) is in {unit!r}, not a "
+            f"{wanted} unit; {fix}")
+
+
 def _read_signals(spec: str, *, input_col: str, output_col: str, quantity: str,
                   time_col: str | None, fs: float | None,
                   window: tuple[float | None, float | None], units: dict[str, str]
@@ -103,6 +122,8 @@ def _read_signals(spec: str, *, input_col: str, output_col: str, quantity: str,
         try:
             si_unit, factor = to_si(col, unit, source=path.name)
         except FileFormatError:
+            if col == out:
+                raise FileFormatError(_output_unit_problem(path.name, fname, unit, out)) from None
             if col != "u":
                 raise
             si_unit, factor = unit, 1.0  # a voltage or current command keeps its unit
