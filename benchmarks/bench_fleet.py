@@ -81,6 +81,14 @@ def _plain_rows(sample, workers, method):
                   f"{base / wall:10.2f}", flush=True)
 
 
+def _in_process(files, method):
+    """Wall and processor time per record of the records in this process [s]."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    for f in files:
+        identify_file(f, method=method, method_options={"mass": 1.0})
+    return ((time.perf_counter() - t0) / len(files), (time.process_time() - c0) / len(files))
+
+
 def _throughput_study(files, n_records, folder, workers=(1, 2), method="output-error"):
     """In-process baseline, then Dask workers (one record per task, and batched).
 
@@ -92,11 +100,7 @@ def _throughput_study(files, n_records, folder, workers=(1, 2), method="output-e
     # not depend on the count); the batched multi-worker rows on all of them
     few = sample[:48]
     identify_file(sample[0], method=method, method_options={"mass": 1.0})  # compile first
-    t0, c0 = time.perf_counter(), time.process_time()
-    for f in few:
-        identify_file(f, method=method, method_options={"mass": 1.0})
-    serial_wall = (time.perf_counter() - t0) / len(few)
-    serial_cpu = (time.process_time() - c0) / len(few)
+    serial_wall, serial_cpu = _in_process(few, method)
     serial = 1.0 / serial_wall
     try:
         load = os.getloadavg()[0]
@@ -119,6 +123,11 @@ def _throughput_study(files, n_records, folder, workers=(1, 2), method="output-e
         print(f"{label:34s} {summary.n_tasks:5d} {rate:9.2f} "
               f"{rate / (n_workers * serial):10.2f} "
               f"{summary.cpu_seconds_per_record * 1e3:10.0f} {overhead * 1e3:16.1f}")
+    # timed again after the Dask rows: a lent machine's core speed was seen to move by half
+    # within minutes (docs/performance.md), which the efficiencies above would carry
+    again, _ = _in_process(few, method)
+    print(f"{'in-process again (drift check)':34s} {'-':>5s} {1.0 / again:9.2f} "
+          f"{serial_wall / again:10.2f}")
     need = 100_000 / (8 * 3600)
     print(f"100 000 axes per 8-h shift = {need:.2f} records/s; at {serial_cpu * 1e3:.0f} ms "
           f"of processor time per record that is {need * serial_cpu:.2f} busy cores")
