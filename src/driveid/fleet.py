@@ -21,6 +21,7 @@ from __future__ import annotations
 import datetime as dt
 import glob
 import inspect
+import itertools
 import os
 import re
 import time
@@ -530,10 +531,8 @@ def _run(client, todo, located, cat, method, options, record_kwargs, machine_typ
 
     futures = {}
     items = list(todo.items())
-    starts = [0]
-    for size in sizes:
-        starts.append(starts[-1] + size)
-    for i, j in zip(starts[:-1], starts[1:], strict=True):
+    starts = list(itertools.accumulate(sizes, initial=0))
+    for i, j in itertools.pairwise(starts):
         chunk = items[i:j]
         key = hashlib.sha256("".join(sha for sha, _ in chunk).encode()).hexdigest()[:32]
         future = client.submit(identify_files, [str(path) for _, path in chunk], method=method,

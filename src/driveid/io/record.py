@@ -14,7 +14,8 @@ import numpy as np
 from driveid.errors import RecordError, RecordWarning
 from driveid.signal.repair import _interval_blocks, check_timeline, find_corrupted_bursts
 
-__all__ = ["Record", "MIN_SAMPLES", "DEFAULT_UNITS", "needs_uniform_sampling", "record_from_table"]
+__all__ = ["Record", "MIN_SAMPLES", "DEFAULT_UNITS", "needs_uniform_sampling", "record_from_table",
+           "resample_linearly"]
 
 #: Fewest samples a record may have [-].
 MIN_SAMPLES = 8
@@ -329,19 +330,11 @@ class Record:
         jitter = self.jitter()
         if jitter <= tolerance:
             return self
-        dt = self.dt
-        n = int(np.floor(self.duration / dt + 1e-9)) + 1
-        t = self.t[0] + dt * np.arange(n)
-        t = t[t <= self.t[-1]]
-        columns = {name: np.interp(t, self.t, getattr(self, name))
-                   for name in self.columns if name != "t"}
-        warnings.warn(
-            f"sampling is not uniform (worst interval {100 * jitter:.3g} % off the median); "
-            f"{purpose} needs uniform sampling, so the record was resampled linearly to "
-            f"{1 / dt:.6g} Hz; record at a steady rate, or check the timestamps",
-            RecordWarning, stacklevel=2)
+        t, columns = resample_linearly(
+            self.t, {name: getattr(self, name) for name in self.columns if name != "t"},
+            dt=self.dt, jitter=jitter, purpose=purpose, stacklevel=3)
         return self.replace(t=t, **columns, max_jitter=tolerance,
-                            meta={"resampled": {"from_jitter": jitter, "fs": 1 / dt}})
+                            meta={"resampled": {"from_jitter": jitter, "fs": 1 / self.dt}})
 
     @property
     def columns(self) -> tuple[str, ...]:
@@ -351,6 +344,44 @@ class Record:
     def __repr__(self) -> str:
         cols = ", ".join(self.columns)
         return f"Record(n={self.n}, fs={self.fs:g} Hz, duration={self.duration:g} s, [{cols}])"
+
+
+def resample_linearly(t: np.ndarray, columns: Mapping[str, np.ndarray], *, dt: float,
+                      jitter: float, purpose: str | None, source: str = "",
+                      stacklevel: int = 2) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Interpolate columns linearly onto ``t[0] + k·dt`` and warn (unless ``purpose`` is None).
+
+    Parameters
+    ----------
+    t : ndarray
+        Increasing time [s].
+    columns : mapping of str to ndarray
+        Signals sampled at ``t`` [any unit].
+    dt : float
+        The uniform interval, the median of the record's [s].
+    jitter : float
+        The record's largest relative interval deviation, named in the warning [-].
+    purpose : str or None
+        What needs uniform sampling, named in the warning; None: no warning.
+    source : str
+        Prefix of the warning (e.g. ``"trace.csv: "``).
+    stacklevel : int
+        Of the warning, as for :func:`warnings.warn`.
+
+    Returns
+    -------
+    (ndarray, dict)
+        The uniform time [s] (within ``t[0] .. t[-1]``) and the columns on it.
+    """
+    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+    grid = grid[grid <= t[-1]]
+    if purpose is not None:
+        warnings.warn(
+            f"{source}sampling is not uniform (worst interval {100 * jitter:.3g} % off the "
+            f"median); {purpose} needs uniform sampling, so the record was resampled linearly "
+            f"to {1 / dt:.6g} Hz; record at a steady rate, or check the timestamps",
+            RecordWarning, stacklevel=stacklevel + 1)
+    return grid, {name: np.interp(grid, t, values) for name, values in columns.items()}
 
 
 def needs_uniform_sampling(purpose: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:

@@ -12,15 +12,15 @@ item 5: resample and warn; before, the fit refused every clock not uniform to 1e
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from driveid.errors import FileFormatError, RecordWarning
+from driveid.errors import FileFormatError
 from driveid.identify.drive._drive_model import DriveRecord
+from driveid.io.record import resample_linearly
 
 __all__ = ["read_drive_record"]
 
@@ -121,14 +121,13 @@ def _uniform_clock(path: Path, t: np.ndarray, chans: dict[str, np.ndarray],
     jitter = float(np.max(np.abs(steps - dt))) / dt
     if jitter <= 1e-6:
         return t, chans, u, meta
-    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
-    if jitter > (0.01 if tolerance is None else tolerance):
-        warnings.warn(
-            f"{path.name}: sampling is not uniform (worst interval {100 * jitter:.3g} % off "
-            f"the median); the drive fit simulates at a fixed rate, so the record was "
-            f"resampled linearly to {1 / dt:.6g} Hz ({grid.size} samples); record at a steady "
-            f"rate, or check the timestamps", RecordWarning, stacklevel=3)
-    chans = {name: np.interp(grid, t, values) for name, values in chans.items()}
-    u = None if u is None else np.interp(grid, t, u)
+    # a clock within the tolerance is put on the grid silently: the simulator needs it exact
+    loud = jitter > (0.01 if tolerance is None else tolerance)
+    columns = dict(chans) if u is None else {**chans, "u": u}
+    grid, columns = resample_linearly(
+        t, columns, dt=dt, jitter=jitter, source=f"{path.name}: ", stacklevel=3,
+        purpose="the drive fit, which simulates at a fixed rate," if loud else None)
+    u = columns.pop("u", None)
+    chans = columns
     meta = {**meta, "resampled": {"from_jitter": jitter, "fs": 1 / dt}}
     return grid, chans, u, meta

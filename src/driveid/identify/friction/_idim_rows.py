@@ -16,6 +16,7 @@ from driveid.errors import ParameterError, RecordError
 from driveid.identify.core._expressions import evaluate_expression
 from driveid.io.record import Record
 from driveid.signal.differentiate import differentiate, zero_phase_lowpass
+from driveid.signal.envelope import block_decimate
 from driveid.signal.steady import standstill_mask
 
 __all__ = ["MODELS", "idim_regressor"]
@@ -61,7 +62,9 @@ def idim_regressor(
     decimate : int
         Decimation factor of observation matrix and force [-]; 1 disables it. Each row is
         the mean of ``decimate`` consecutive samples of every column and of the force (a
-        linear filter applied to both sides, so the model holds for the means). EMPS used
+        linear filter applied to both sides, so the model holds for the means;
+        :func:`~driveid.signal.envelope.block_decimate`, the last ``n mod decimate`` samples
+        dropped). EMPS used
         MATLAB's ``decimate`` (order-8 Chebyshev I at 0.8 of the new Nyquist, zero phase):
         its stopband left the decimated noise coloured in a way no AR model of a few hundred
         rows follows, and IDIM's error bars covered 0.86-0.91 on white noise (sd/se up to
@@ -169,8 +172,8 @@ def idim_regressor(
     cols += [lambda c=c: c for c in extra]
     if decimate > 1:
         q = int(decimate)
-        W = np.column_stack([_block_means(make(), q) for make in cols])
-        y, v_dec, t = _block_means(y, q), _block_means(v, q), _block_means(t, q)
+        W = np.column_stack([block_decimate(make(), q) for make in cols])
+        y, v_dec, t = block_decimate(y, q), block_decimate(v, q), block_decimate(t, q)
     else:
         W = np.column_stack([make() for make in cols])
         v_dec = v
@@ -179,16 +182,9 @@ def idim_regressor(
         raise ParameterError(f"min_speed must be >= 0 [m/s or rad/s]; got {min_speed}")
     still = standstill_mask(np.asarray(record.x, float), max(1, round(fs / cutoff_hz)))[sl]
     if decimate > 1:  # a stop anywhere in a block puts static friction into its mean
-        still = _block_means(still.astype(float), int(decimate)) > 0
+        still = block_decimate(still.astype(float), int(decimate)) > 0
     moving = ~still & (np.abs(v_dec) > min_speed)
     return W[moving], y[moving], t[moving], v_dec[moving]
-
-
-def _block_means(x: np.ndarray, q: int) -> np.ndarray:
-    """Means of consecutive blocks of ``q`` samples (the last one of what is left)."""
-    full = x.size // q * q
-    means = x[:full].reshape(-1, q).mean(axis=1)
-    return np.append(means, x[full:].mean()) if full < x.size else means
 
 
 def _per_sample(value: Any, n: int, name: str) -> np.ndarray:
