@@ -242,3 +242,26 @@ def test_default_decimation_keeps_the_error_bars_honest(phi):
     # it and above the Chebyshev's 0.88-0.89
     assert spread < 1.12, {k: round(float(np.std(v)), 2) for k, v in z.items()}
     assert covered >= 0.92, covered
+
+
+def test_terminal_shows_the_noise_model_and_the_adequacy_notes(tmp_path):
+    """The noise model, the kind of error bars and the notes no warning says (here the
+    slow-noise excess of 1/f-like force noise) reach the terminal; they reached --json
+    only."""
+    from click.testing import CliRunner
+
+    from driveid.commands.friction import idim_command
+
+    rec = _pink(0)
+    path = tmp_path / "pink.csv"
+    np.savetxt(path, np.column_stack([rec.t, rec.x, rec.u]), delimiter=",", header="t,x,u",
+               comments="")
+    args = [str(path), "--cutoff-hz", "50", "--decimate", "1", "--no-sensitivity"]
+    shown = CliRunner().invoke(idim_command, args)
+    assert shown.exit_code == 0, shown.output
+    assert "noise: AR(" in shown.output and "error bars: " in shown.output
+    # the same fit through the API: its slow-noise note, printed once as a note
+    est = estimate_idim(rec, cutoff_hz=50.0, decimate=1, sensitivity=False)
+    assert est.diagnostics["slow_noise"]["applied"]
+    assert shown.output.count("note: the residuals hold more power at the record's "
+                              "slowest") == 1

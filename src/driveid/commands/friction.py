@@ -9,7 +9,7 @@ from typing import Any
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._output import emit, output_options
+from driveid.commands._output import cli_text, emit, output_options
 from driveid.commands._record_options import record_options, split_window_spec
 
 __all__ = ["friction_map_command", "idim_command"]
@@ -147,11 +147,19 @@ def idim_command(files, validate_file, model, cutoff_hz, decimate, offset, load_
     if extra:
         est = dataclasses.replace(est, diagnostics={**est.diagnostics, **extra})
     d = est.diagnostics
-    emit(est, output_opts, records=records, figure=lambda: plot_idim(est, val),
-         header=f"method: {est.method}   N = {d['n']}   cond = {d['cond']:.4g}   "
-                f"relative error = {d['relative_error_pct']:.4g} %")
+    noise_line = (f"noise: {d['noise_model']['kind']} (n_eff {d['noise_model']['n_eff']:.0f} "
+                  f"of {d['noise_model']['n']} rows)   error bars: "
+                  f"{d['adequacy']['covariance']}")
+    shown = emit(est, output_opts, records=records, figure=lambda: plot_idim(est, val),
+                 header=f"method: {est.method}   N = {d['n']}   cond = {d['cond']:.4g}   "
+                        f"relative error = {d['relative_error_pct']:.4g} %\n{noise_line}")
     if output_opts.as_json:
         return
+    # the adequacy notes a warning did not already say (the velocity cross-correlation,
+    # the slow-noise excess): before, they reached --json only
+    for note in d["adequacy"]["notes"]:
+        if note not in shown.warnings and not note.startswith("force residuals are coloured"):
+            click.echo(f"note: {cli_text(note)}", err=True)
     if val is not None:
         click.echo(f"cross-test on {split_window_spec(validate_file)[0].name}: relative "
                    f"error {val.relative_error:.4g} %   cond = {val.cond:.4g}")
