@@ -183,7 +183,12 @@ def main() -> None:
                  f"({info['pieces_not_white']} of {info['piece_channels']} channels not white"
                  + (f"; halved from {info['halved_from']['length']:g} s, "
                     f"{info['halved_from']['not_white']} not white" if info["halved_from"]
-                    else "") + ")" if info["done"] else ""),
+                    else "") + ")" if info["done"] else "")
+              + (f", {info['ridge_restarts']['tried']} ridge restarts "
+                 f"({info['ridge_restarts']['taken']} taken, cost "
+                 f"{info['ridge_restarts']['cost_to_noise']:.3f} -> "
+                 f"{info['ridge_restarts']['final_cost_to_noise']:.3f} of the noise)"
+                 if info.get("ridge_restarts", {}).get("tried") else ""),
               flush=True)
     if pool is not None:
         pool.shutdown()
