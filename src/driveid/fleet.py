@@ -288,7 +288,9 @@ def _expand(paths: str | Path | Iterable[str | Path]) -> list[Path]:
                          if os.path.isfile(p))
         else:
             if not Path(text).is_file():
-                raise FileNotFoundError(f"no such record file: {text}")
+                from driveid.io.tables import _not_a_file
+
+                _not_a_file(Path(text))
             found.append(Path(text))
     return list(dict.fromkeys(found))
 
@@ -407,7 +409,16 @@ def _start_client(scheduler: str | None, n_workers: int, owned: list[Any]) -> An
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
-        client = Client(scheduler)
+        try:
+            client = Client(scheduler)
+        except (OSError, TimeoutError, ValueError, MemoryError) as exc:
+            # issue 28: a service that is no Dask scheduler sent bytes read as a 3 EiB frame
+            # length, and the line said "out of memory"; a dead address timed out in Dask
+            raise ConfigError(
+                f"cannot use the Dask scheduler at {scheduler}: {type(exc).__name__}: "
+                f"{str(exc)[:200]}; check the address and that a Dask scheduler (not another "
+                "service) listens there, or leave --scheduler out for a local cluster"
+            ) from None
         owned.append(client)
         return client
     if n_workers < 1:

@@ -300,13 +300,14 @@ class Catalog:
         kwargs: dict[str, Any] = {"future": True}
         if self.url.startswith("sqlite"):
             # several processes may write (fleet runs): wait for the lock, don't fail
-            kwargs["connect_args"] = {"timeout": 60}
+            kwargs["connect_args"] = {"timeout": _SQLITE_LOCK_WAIT}
         try:
             self.engine = sa.create_engine(self.url, **kwargs)
         except (sa.exc.ArgumentError, sa.exc.NoSuchModuleError, ImportError) as exc:
             raise ConfigError(f"cannot open catalogue {catalog!r}: {exc}") from None
         if self.url.startswith("sqlite"):
             sa.event.listen(self.engine, "connect", _sqlite_pragmas)
+            sa.event.listen(self.engine, "handle_error", _sqlite_locked)
         try:
             self.schema_version = self._migrate()
         except sa.exc.OperationalError as exc:
@@ -474,6 +475,7 @@ class Catalog:
             return outcomes
 
     def _result_row(self, result, *, machine, axis, measured_at=None, machine_type=None):
+        _check_names(machine, axis)
         method, params, cov = _parse_result(result)
         inputs = [dict(i) for i in result.get("inputs") or []]
         key = entry_key([str(i.get("sha256") or "") for i in inputs], method,
@@ -488,6 +490,7 @@ class Catalog:
 
     def _failure_row(self, *, inputs, method, error, machine, axis, measured_at=None,
                      machine_type=None, command=(), driveid_version=None):
+        _check_names(machine, axis)
         inputs = [dict(i) for i in inputs]
         key = entry_key([str(i.get("sha256") or "") for i in inputs], method,
                         fallback={"error": error})
@@ -777,6 +780,37 @@ def _check_sqlite_file(path: Path) -> None:
     if tables and "schema_version" not in tables:
         raise ConfigError(f"{path} holds tables of another application but no "
                           f"schema_version table: not a driveid catalogue; {fix}")
+
+
+def _check_names(machine: Any, axis: Any) -> None:
+    """Refuse names that 'driveid health MACHINE/AXIS' could not address afterwards."""
+    # issue 28: --machine '' --axis '' was catalogued, and no MACHINE/AXIS names it
+    for what, name in (("machine", machine), ("axis", axis)):
+        if not isinstance(name, str) or not name.strip():
+            raise ConfigError(f"the {what} name must be a non-empty text (--{what}); got "
+                              f"{name!r}")
+    if "/" in axis:
+        raise ConfigError(f"the axis name must not contain '/' (health reads MACHINE/AXIS); "
+                          f"got {axis!r}")
+
+
+#: Seconds a SQLite catalogue waits for another process's write lock before giving up [s].
+_SQLITE_LOCK_WAIT = 30.0
+
+
+def _sqlite_locked(context: Any) -> None:
+    """Turn SQLite's 'database is locked' (after the wait) into one line naming the fix."""
+    import sqlite3
+
+    exc = context.original_exception
+    if isinstance(exc, sqlite3.OperationalError) and "locked" in str(exc):
+        # issue 28: a catalogue held by another process ended in exit 70 after 60 s
+        url = context.engine.url if context.engine is not None else "the catalogue"
+        raise ConfigError(
+            f"catalogue {url.database if hasattr(url, 'database') else url} stayed locked by "
+            f"another process for {_SQLITE_LOCK_WAIT:g} s ({exc}); wait for that process "
+            "(a running 'driveid fleet identify'?) to finish and run this again, or name "
+            "another catalogue (--catalog FILE)")
 
 
 def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:

@@ -23,7 +23,7 @@ from driveid.io.consistency import available_memory, check_allocation, check_cou
 
 __all__ = ["FiniteFloat", "PositiveFloat", "NonNegativeFloat", "BoundedInt",
            "check_allocation", "check_count", "available_memory", "FLOAT_LIMIT",
-           "parse_quantisation", "bootstrap_options"]
+           "parse_quantisation", "bootstrap_options", "SEED"]
 
 #: Largest magnitude a float option accepts by default: far beyond any physical value in
 #: SI units, yet small enough that squares and products of two options stay finite.
@@ -172,6 +172,11 @@ class BoundedInt(click.ParamType):
         return number
 
 
+#: Type of every ``--seed`` option: numpy's generators take a non-negative integer (issue 28:
+#: ``--seed -1`` ended in an internal error on every command that has the option).
+SEED = BoundedInt(2**64 - 1, min=0)
+
+
 def parse_quantisation(text: str) -> float | str | None:
     """Parse ``--quantisation``: ``auto``, ``none`` or an encoder step [m or rad].
 
@@ -219,7 +224,7 @@ def bootstrap_options(default_replicates: int) -> Any:
         :func:`parse_quantisation`), ``bootstrap`` and ``seed``.
     """
     def decorate(command: Any) -> Any:
-        command = click.option("--seed", type=int, default=None,
+        command = click.option("--seed", type=SEED, default=None,
                                help="Seed of the bootstrap (oe).")(command)
         # each replicate is one more whole-record fit: 1e8 once ran on silently (issue 28)
         limit = BoundedInt(MAX_BOOTSTRAP, min=1, override="each replicate is one more fit; "

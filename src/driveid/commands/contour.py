@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import PositiveFloat
+from driveid.commands._checks import SEED, PositiveFloat
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
 from driveid.errors import ConfigError
@@ -74,7 +74,7 @@ def write_contour_csv(columns: dict, path: str | Path, *, overwrite: bool = Fals
               help="RESULT.json of 'driveid identify contour': add its friction "
                    "feed-forward and backlash compensation (also simulated without, and "
                    "with the friction 20 % low and high).")
-@click.option("--seed", type=int, default=None,
+@click.option("--seed", type=SEED, default=None,
               help="Seed of the measurement noise; overrides [noise] seed.")
 @click.option("--json", "as_json", is_flag=True,
               help="Print the radial error, glitches and reversal spikes as JSON.")

@@ -9,8 +9,14 @@ import click
 import numpy as np
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import SEED
 from driveid.io.safe_write import atomic_write_text
 from driveid.signal import excitation as _ex
+
+#: Time to format and write one CSV row, measured on the shared 2-core machine [s].
+_CSV_SECONDS_PER_ROW = 1.5e-6
+#: A write estimated longer than this [s] is announced first.
+_ANNOUNCE_SECONDS = 10.0
 
 __all__ = ["excite_command"]
 
@@ -42,7 +48,7 @@ def _need(kind: str, **values: object) -> None:
 @click.option("--period", type=float, default=None,
               help="Multisine period [s] (default: the duration).")
 @click.option("--order", type=int, default=None, help="PRBS register length (2..24).")
-@click.option("--seed", type=int, default=None, help="Seed (random).")
+@click.option("--seed", type=SEED, default=None, help="Seed (random).")
 @click.option("--ramp-time", type=float, default=None, help="Ramp duration [s] (ramp).")
 @click.option("--dwell-time", type=float, default=0.0, show_default=True,
               help="Plateau duration [s] (ramp).")
@@ -87,6 +93,10 @@ def excite_command(kind, f_min, f_max, frequency, f_clock, duration, fs, amplitu
         _need(kind, ramp_time=ramp_time)
         sig = _ex.ramps_with_dwell(amplitude=amplitude, ramp_time=ramp_time,
                                    dwell_time=dwell_time, fs=fs, n_cycles=cycles)
+    seconds = sig.t.size * _CSV_SECONDS_PER_ROW
+    if seconds > _ANNOUNCE_SECONDS:  # issue 28: 1e8 rows were written for minutes unannounced
+        click.echo(f"writing {sig.t.size:.3g} rows of CSV to {out}: about {seconds:.3g} s",
+                   err=True)
     settings = {k: (v.tolist() if isinstance(v, np.ndarray) else v)
                 for k, v in sig.settings.items() if k != "frequencies"}
     meta = {"kind": sig.kind, "settings": settings, "crest_factor": sig.crest_factor,

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import BoundedInt
+from driveid.commands._checks import SEED, BoundedInt
 from driveid.commands._record_options import record_options
 from driveid.commands.catalog import catalog_option, check_catalog_names_a_file
 from driveid.errors import ConfigError
@@ -84,7 +84,7 @@ def fleet_identify_command(patterns, method, mass, stiffness, path_pattern, mach
               help="Monthly measurements per axis.")
 @click.option("--faulty", "faulty_fraction", type=float, default=0.1, show_default=True,
               help="Fraction of axes with an injected fault.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option("--seed", type=SEED, default=0, show_default=True, help="Random seed.")
 @click.option("--max-records", type=click.IntRange(min=1), default=100_000, show_default=True,
               help="Most records (axes x months) written without this override.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing simulated fleet.")

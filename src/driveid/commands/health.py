@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import BoundedInt
 from driveid.commands.catalog import catalog_option, open_catalog
 from driveid.errors import ConfigError
 
@@ -23,12 +24,12 @@ def blueprint_group():
 @click.option("--machine-type", required=True, help="Machine type to describe.")
 @click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="Blueprint JSON file to write.")
-@click.option("--first", type=int, default=3, show_default=True,
+@click.option("--first", type=BoundedInt(10**9, min=0), default=3, show_default=True,
               help="Use each axis's first N identifications (commissioning, healthy); 0: all.")
 @click.option("--until", default=None, help="Use only measurements up to this ISO 8601 time.")
 @click.option("--parameter", "parameters", multiple=True,
               help="Parameter to monitor (repeatable) [default: the physical ones].")
-@click.option("--min-axes", type=int, default=5, show_default=True,
+@click.option("--min-axes", type=BoundedInt(10**9, min=2), default=5, show_default=True,
               help="Fewest axes for a blueprint.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing blueprint file.")
 @catalog_option
@@ -66,7 +67,7 @@ def blueprint_make_command(machine_type, out, first, until, parameters, min_axes
               help="False-alarm rate of 'degraded' per healthy measurement.")
 @click.option("--watch-alpha", type=float, default=0.1, show_default=True,
               help="False-alarm rate of 'watch' per healthy measurement.")
-@click.option("--baseline", type=int, default=3, show_default=True,
+@click.option("--baseline", type=BoundedInt(10**6, min=1), default=3, show_default=True,
               help="Identifications before the drift test (CUSUM) starts.")
 @click.option("--json", "as_json", is_flag=True, help="Print the assessment as JSON.")
 @click.option("--figure", default=None, type=click.Path(dir_okay=False, path_type=Path),

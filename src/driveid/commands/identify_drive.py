@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import PositiveFloat
+from driveid.commands._checks import NonNegativeFloat, PositiveFloat
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options, split_window_spec
 from driveid.identify.drive._drive_model import DEFAULT_FIT_STEPS
@@ -89,7 +89,7 @@ def _pieces_line(info: dict) -> str:
               help="Column of the input torque/force u (default: command or u).")
 @click.option("--input-body", type=int, default=None,
               help="Body (from 1) the input acts on (default: [feedback] body, else 1).")
-@click.option("--segment", type=float, default=0.5, show_default=True,
+@click.option("--segment", type=NonNegativeFloat(), default=0.5, show_default=True,
               help="Open loop: first fit segments of this length [s] (0: whole records).")
 @click.option("--pieces", default="auto", show_default=True, metavar="SECONDS|auto",
               help="Open loop: re-fit the records cut into pieces of this length [s], each "

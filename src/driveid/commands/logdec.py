@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import bootstrap_options, parse_quantisation
+from driveid.commands._checks import SEED, bootstrap_options, parse_quantisation
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
 
@@ -44,7 +44,7 @@ __all__ = ["free_decay_command", "logdec_command"]
               help="Linear encoder quantisation [counts/m].")
 @click.option("--units", type=click.Choice(["rad", "m"]), default="rad", show_default=True,
               help="Rotational (rad, N·m) or translational (m, N) record.")
-@click.option("--seed", type=int, default=None, help="Seed of the noise generator.")
+@click.option("--seed", type=SEED, default=None, help="Seed of the noise generator.")
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Record file to write (.csv, .npz or .mat).")
 @click.option("--overwrite", is_flag=True, help="Overwrite an existing output file.")

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import bootstrap_options, parse_quantisation
+from driveid.commands._checks import SEED, bootstrap_options, parse_quantisation
 from driveid.commands._output import emit, output_options, plot_of
 from driveid.commands._progress import progress_bar
 from driveid.commands._record_options import RecordOptions, record_options
@@ -146,7 +146,7 @@ def pho_group():
               help="Encoder quantisation [counts/rev] (rotational presets).")
 @click.option("--counts-per-metre", type=float, default=None,
               help="Encoder quantisation [counts/m] (translational presets).")
-@click.option("--seed", type=int, default=None, help="Seed of the noise generator.")
+@click.option("--seed", type=SEED, default=None, help="Seed of the noise generator.")
 @click.option("--abort-limit", type=float, default=None,
               help="Safety abort when |command| exceeds it [N·m or N] (default 2·max(P)·x0).")
 @click.option("--min-peaks", type=int, default=5, show_default=True,

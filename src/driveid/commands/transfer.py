@@ -100,6 +100,11 @@ def _read_signals(spec: str, *, input_col: str, output_col: str, quantity: str,
             text = text.replace(word, {"f": "command (--input)", "t": "time (--time)"}.get(
                 word[0], "output (--output)"))
         raise FileFormatError(text) from None
+    if chosen["u"] == chosen[out]:  # issue 28: fitted u -> u, exit 0 with a singular fit
+        raise FileFormatError(
+            f"{path.name}: --input and --output both name column {chosen['u']!r}; the output "
+            "is the measured response (speed or position) to the command: name its column "
+            "with --output")
     arrays = {"u": np.asarray(table.columns[chosen["u"]], float),
               out: np.asarray(table.columns[chosen[out]], float)}
     rate = fs if fs is not None else table.fs

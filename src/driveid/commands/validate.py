@@ -36,7 +36,9 @@ def _load_estimate(path: Path):
     try:
         return Estimate.from_dict(data)
     except (ValueError, KeyError, TypeError) as exc:
-        raise FileFormatError(f"{path}: {exc}") from None
+        raise FileFormatError(
+            f"{path} is not a driveid result ({exc}); pass the JSON written by an identify "
+            "command's --json") from None
 
 
 def _index_of(record, estimate, position: int, n_files: int):

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from driveid._json import to_jsonable
-from driveid.errors import ConfigError, FileFormatError
+from driveid.errors import ConfigError, FileFormatError, ParameterError
 
 __all__ = ["BLUEPRINT_SCHEMA", "PHYSICAL_PARAMETERS", "Blueprint", "BlueprintParameter",
            "make_blueprint", "read_blueprint", "write_blueprint"]
@@ -142,7 +142,17 @@ def make_blueprint(entries: Sequence[Any], *, machine_type: str, first: int | No
     ConfigError
         If fewer than ``min_axes`` axes have successful identifications, or a named
         parameter is absent.
+    ParameterError
+        If ``min_axes`` < 2 or ``first`` < 1.
     """
+    # issue 28: min_axes 0 ended in a StopIteration (exit 70); first -1 dropped the last entry
+    if isinstance(min_axes, bool) or not isinstance(min_axes, int) or min_axes < 2:
+        raise ParameterError(f"min_axes must be an integer >= 2 (a spread needs two axes or "
+                             f"more; CLI --min-axes); got {min_axes!r}")
+    if first is not None and (isinstance(first, bool) or not isinstance(first, int)
+                              or first < 1):
+        raise ParameterError(f"first must be an integer >= 1, or None for every entry (CLI "
+                             f"--first N, 0 for all); got {first!r}")
     by_axis: dict[tuple[str, str], list[Any]] = {}
     for e in sorted((e for e in entries if e.status == "ok"), key=lambda e: e.measured_at):
         by_axis.setdefault((e.machine, e.axis), []).append(e)

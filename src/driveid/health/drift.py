@@ -233,11 +233,15 @@ def assess_axis(entries: Sequence[Any], blueprint: Any, *, alpha: float = 0.01,
     ------
     ConfigError
         If no successful identification, entries of several axes, a monitored parameter
-        missing, or alpha outside its range.
+        missing, alpha outside its range, or baseline < 1.
     """
     if not (0 < alpha < 0.5 and alpha <= watch_alpha < 0.5):
         raise ConfigError(f"need 0 < alpha <= watch_alpha < 0.5; got alpha={alpha}, "
                           f"watch_alpha={watch_alpha}")
+    if isinstance(baseline, bool) or not isinstance(baseline, int) or baseline < 1:
+        # issue 28: baseline 0 divided by zero (exit 70); -1 took all but one as reference
+        raise ConfigError(f"baseline must be an integer >= 1 (the identifications whose mean "
+                          f"is the axis's reference; CLI --baseline); got {baseline!r}")
     axes = {(e.machine, e.axis) for e in entries}
     if len(axes) != 1:
         raise ConfigError(f"assess_axis takes the entries of one axis; got {sorted(axes)}")

@@ -523,14 +523,24 @@ def convert_table(
     unresolved = {c for c in COLUMN_ALIASES if any(
         f"the {_WORDS[c]} ({OPTION_OF_COLUMN[c]})" in p or f"could be the {_WORDS[c]}:" in p
         for p in problems)}  # already reported: no second 'not found' for them
-    explicit_time = columns is not None and columns.get("t") not in (None, "")
+    explicit_time = columns is not None and str(columns.get("t") or "").strip().lower() not in (
+        "", "none")
     if fs is not None:
         if explicit_time:
             raise FileFormatError(
                 f"{name}: give the time column (--time) or the sample rate (--fs), not both")
         if not (math.isfinite(fs) and fs > 0):
             raise FileFormatError(f"fs must be a positive sample rate [Hz]; got {fs}")
-        chosen.pop("t", None)
+        found = chosen.pop("t", None)
+        if found:  # issue 28: the file's own clock was dropped without a word
+            import warnings
+
+            from driveid.errors import RecordWarning
+
+            warnings.warn(
+                f"{name}: the file has a time column {found!r}, which --fs {fs:g} Hz (Python: "
+                "fs=) replaces by k/fs; leave --fs out to use the column, or pass --time none "
+                "to say that it is no clock", RecordWarning, stacklevel=4)
     ignored = {c for c, spec in dict(columns or {}).items()
                if str(spec).strip().lower() == "none"}
     if require and not any(c in chosen or c in unresolved for c in require) and not any(
@@ -632,6 +642,13 @@ def convert_table(
         n = next(iter(arrays.values())).size if arrays else table.rows
         arrays["t"] = table.t0 + np.arange(n) / rate
     arrays = _trim_missing(arrays, name)
+    if arrays["t"].size == 0:  # issue 28: empty arrays (.npz, .mat) ended in an IndexError
+        from driveid.io.record import MIN_SAMPLES
+
+        raise FileFormatError(
+            f"{name}: the columns chosen hold no samples (empty arrays); a record needs at "
+            f"least {MIN_SAMPLES} samples: export the data again, or choose other columns "
+            "(--time/--position)")
     _complete_units(si, applied_scale)
     translational = si.get("x", "").startswith("m") or (
         "x" not in si and si.get("v", "").startswith("m/"))

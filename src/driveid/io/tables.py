@@ -94,6 +94,18 @@ class Table:
         return max((c.size for c in self.columns.values()), default=0)
 
 
+def _not_a_file(path: Path) -> None:
+    """Raise the error for a record path that is no regular file (missing, folder, device)."""
+    if path.is_dir():  # issue 28: a folder was reported as 'no such record file'
+        raise IsADirectoryError(
+            f"{path} is a folder, not a record file; name a file in it (e.g. {path}/run.csv), "
+            "or quote a pattern for fleet identify ('DIR/**/*.csv')")
+    if path.exists():
+        raise FileFormatError(f"{path} is not a regular file (a device, pipe or socket); "
+                              "name a record file (.csv, .npz, .mat ...)")
+    raise FileNotFoundError(f"no such record file: {path}")
+
+
 def read_table(path: str | Path) -> Table:
     """Read the numeric columns of a file in any supported format.
 
@@ -111,13 +123,15 @@ def read_table(path: str | Path) -> Table:
     ------
     FileNotFoundError
         If the file does not exist.
+    IsADirectoryError
+        If ``path`` is a folder.
     FileFormatError
-        If the suffix is unknown or the content cannot be parsed; the message says which
-        formats and options would work.
+        If ``path`` is no regular file, the suffix is unknown or the content cannot be
+        parsed; the message says which formats and options would work.
     """
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"no such record file: {path}")
+        _not_a_file(path)
     suffix = path.suffix.lower()
     readers = {".json": _read_json, ".mat": _read_mat, ".npz": _read_npz,
                ".parquet": _read_parquet, ".pq": _read_parquet, ".h5": _read_hdf5,

@@ -254,8 +254,16 @@ def multisine(*, f_min: float, f_max: float, duration: float, fs: float, amplitu
     f_min, f_max = _band(f_min, f_max, fs)
     amplitude = _positive("amplitude", amplitude, "N or N·m")
     period = float(duration) if period is None else _positive("period", period, "s")
+    if period > float(duration) * (1 + 1e-9):
+        # issue 28: a period of 100 s in a 1 s record wrote a signal that never repeats
+        raise ParameterError(
+            f"period {period:g} s is longer than the duration {duration:g} s: the record would "
+            "hold no whole period; give --period at most the duration (ideally a whole "
+            "fraction of it)")
     df = 1.0 / period
-    k_lo, k_hi = int(math.ceil(f_min / df - 1e-9)), int(math.floor(f_max / df + 1e-9))
+    # no line at 0 Hz (issue 28: a period of 1e-9 s made the DC line the only one: u const)
+    k_lo = max(1, int(math.ceil(f_min / df - 1e-9)))
+    k_hi = int(math.floor(f_max / df + 1e-9))
     if k_hi < k_lo:
         raise ParameterError(
             f"no multiple of 1/period = {df:.4g} Hz lies in [{f_min}, {f_max}] Hz; lengthen "
@@ -264,9 +272,24 @@ def multisine(*, f_min: float, f_max: float, duration: float, fs: float, amplitu
     n_lines = freqs.size
     k = np.arange(1, n_lines + 1)
     phases = -np.pi * k * (k - 1) / n_lines
-    u = np.zeros_like(t)
-    for f, ph in zip(freqs, phases, strict=True):
-        u += np.cos(2 * np.pi * f * t + ph)
+    per = period * fs
+    if abs(per - round(per)) <= 1e-9 * per:
+        # a whole number of samples a period: one inverse FFT of the lines, repeated (issue
+        # 28: the sum of 4e5 lines over 1e6 samples, one cosine at a time, took hours)
+        size = int(round(per))
+        spectrum = np.zeros(size // 2 + 1, complex)
+        spectrum[np.arange(k_lo, k_hi + 1)] = np.exp(1j * phases)
+        u = np.fft.irfft(spectrum, size)[np.arange(t.size) % size]
+    else:
+        if float(n_lines) * t.size > 2e9:  # about a minute of cosines
+            raise ParameterError(
+                f"multisine: {n_lines} lines x {t.size} samples is more than 2e9 cosine "
+                f"evaluations, since the period {period:g} s is not a whole number of samples "
+                f"at {fs:g} Hz; give a period of a whole number of samples (fast), a narrower "
+                "band or a shorter record")
+        u = np.zeros_like(t)
+        for f, ph in zip(freqs, phases, strict=True):
+            u += np.cos(2 * np.pi * f * t + ph)
     u *= amplitude / np.max(np.abs(u))
     return Excitation(kind="multisine", t=t, u=u, fs=float(fs), band=(f_min, f_max),
                       period=period,
@@ -465,6 +488,16 @@ def ramps_with_dwell(*, amplitude: float, ramp_time: float, dwell_time: float, f
     fs = _positive("fs", fs, "Hz")
     if not (isinstance(n_cycles, int) and n_cycles >= 1):
         raise ParameterError(f"n_cycles must be an int >= 1; got {n_cycles!r}")
+    from driveid.io.consistency import check_allocation
+
+    # the size is known before the knots are laid (issue 28: 1e9 cycles ran on silently in
+    # the knot loop); t, u, the interpolation and the CSV text: ~128 B a sample
+    total = n_cycles * 4 * (ramp_time + dwell_time)
+    check_allocation(total * fs + 1, 128,
+                     f"ramps: {n_cycles} cycles of {4 * (ramp_time + dwell_time):g} s at "
+                     f"{fs:g} Hz",
+                     override="fewer cycles (--cycles), shorter ramps or dwells, or a lower "
+                              "rate (--fs)")
     knots_t, knots_u, now = [0.0], [0.0], 0.0
     for _ in range(n_cycles):
         for level in (amplitude, 0.0, -amplitude, 0.0):

@@ -375,6 +375,16 @@ def read_toml(path: str | Path, what: str) -> dict:
                           f"path; got {str(path)!r}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path.name}: not valid TOML ({exc}); fix the syntax") from None
+    except UnicodeDecodeError as exc:  # issue 28: was the CSV reader's message, no file name
+        raise ConfigError(
+            f"{path.name}: the {what} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at "
+            f"offset {exc.start}; UTF-16 or Latin-1?); save it as UTF-8, as TOML requires"
+        ) from None
+    except RecursionError:  # issue 28: arrays nested thousands deep were an internal error
+        raise ConfigError(
+            f"{path.name}: the {what} nests arrays or tables deeper than the TOML parser can "
+            "follow; driveid's TOML files need three levels at most (tables of numbers, strings "
+            "and lists of them): fix the file") from None
 
 
 def simulate_config(params: DriveParams, options: RunOptions, *,

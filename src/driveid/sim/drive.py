@@ -201,6 +201,9 @@ class DriveCost:
         Bytes the result and its CSV writer hold at once, an upper estimate [B].
     seconds : float
         Rough run time on one core [s].
+    history : float
+        Bytes of the feedback's state history (4 rows of 8 B a grid step, plus twice the
+        steps of the delay), held during the run [B]; 0 without feedback.
     """
 
     n_samples: int
@@ -210,6 +213,7 @@ class DriveCost:
     stiffest: str
     memory: float
     seconds: float
+    history: float = 0.0
 
 
 def estimate_drive_cost(params: DriveParams, *, duration: float, fs: float = 1000.0,
@@ -264,9 +268,15 @@ def estimate_drive_cost(params: DriveParams, *, duration: float, fs: float = 100
     # x, v, command, six energy rows, time, an input grid and the CSV writer's two copies
     memory = 8.0 * n_out * (8 * nb + 12)
     seconds = n_steps * nb * _SECONDS_PER_STEP_BODY + n_out * 1e-7 * nb
+    history = 0.0
+    fb = params.feedback
+    if fb is not None:  # the kernel's history: every grid step, and a ring of the delay
+        h = 1.0 / (fs * n_sub)
+        ring = math.ceil(fb.delay / h - 1e-9) + 3 if fb.delay > 0 else 0
+        history = 32.0 * (n_steps + 2 + 2 * ring)
     return DriveCost(n_samples=n_out, n_steps=n_steps, step=1.0 / (fs * n_sub),
                      period=2 * math.pi / rate if rate > 0 else math.inf, stiffest=what,
-                     memory=memory, seconds=seconds)
+                     memory=memory, seconds=seconds, history=history)
 
 
 def _max_step(params: DriveParams, fs: float, rate: float, max_step: float | None) -> float:
@@ -300,9 +310,18 @@ def check_drive_cost(cost: DriveCost, *, duration: float,
         ``max_steps`` steps; the message names the estimate, the stiffest element and the
         fix.
     """
-    from driveid.io.consistency import check_allocation
+    from driveid.io.consistency import _fmt_bytes, available_memory, check_allocation
 
-    check_allocation(cost.n_samples, cost.memory / cost.n_samples,
+    free = available_memory()
+    if cost.memory + cost.history > free and cost.history > cost.memory:
+        # issue 28: [feedback] delay = 1e6 s allocated its ring in the kernel: "out of memory"
+        raise ParameterError(
+            f"simulate_drive: the feedback's state history needs about "
+            f"{_fmt_bytes(cost.history)} ({cost.n_steps:.3g} grid steps of {cost.step:.2g} s "
+            f"and the delay's ring, 32 B a step each), more than the {_fmt_bytes(free)} of "
+            "memory available; shorten the feedback delay ([feedback] delay, a few control "
+            "periods in a real drive) or the duration")
+    check_allocation(cost.n_samples, (cost.memory + cost.history) / cost.n_samples,
                      f"simulate_drive: {duration:g} s at fs = {cost.n_samples / duration:.3g} "
                      f"Hz ({cost.n_samples:.3g} samples)",
                      override="shorten the duration or lower the output rate fs (CLI: "

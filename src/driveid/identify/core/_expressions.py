@@ -116,7 +116,7 @@ def evaluate_expression(text: str, values: Mapping[str, np.ndarray]) -> np.ndarr
     ------
     ParameterError
         If the expression is refused, uses a quantity that is not available, or gives a
-        non-finite value.
+        non-finite value or one above 1e100 in magnitude.
 
     Examples
     --------
@@ -154,4 +154,10 @@ def evaluate_expression(text: str, values: Mapping[str, np.ndarray]) -> np.ndarr
         raise ParameterError(f"expression {text!r} gives non-finite values on this record "
                              f"(e.g. sqrt or log of a negative number); got "
                              f"{int(np.count_nonzero(~np.isfinite(out)))} non-finite samples")
+    peak = float(np.max(np.abs(out), initial=0.0))
+    if peak > 1e100:  # issue 28: exp(1000*x) reached 1e304; the fit gave nan with exit 0
+        raise ParameterError(
+            f"expression {text!r} reaches {peak:.3g} on this record, above the 1e+100 that "
+            "driveid computes with (its squares overflow); check the expression and the "
+            "units of t x v a u (SI: m or rad, s, N or N·m)")
     return out

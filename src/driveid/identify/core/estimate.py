@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -77,9 +78,23 @@ class Parameter:
         -------
         Parameter
             The parameter.
+
+        Raises
+        ------
+        ValueError
+            If ``data`` is not an object, or a value or standard error is not a number.
         """
+        if not isinstance(data, Mapping):  # issue 28: a hand-edited result ended in exit 70
+            raise ValueError("a parameter must be an object {value, stderr, unit}; got a "
+                             f"{type(data).__name__}")
+
         def number(v: Any) -> float:
-            return math.nan if v is None else float(v)
+            if v is None:
+                return math.nan
+            if isinstance(v, bool) or not isinstance(v, numbers.Real):
+                raise ValueError(f"a parameter's value and stderr must be numbers or null; "
+                                 f"got {v!r}")
+            return float(v)
 
         return cls(number(data.get("value")), number(data.get("stderr")),
                    str(data.get("unit", "-")), bool(data.get("fixed", False)))
@@ -203,11 +218,27 @@ class Estimate:
         """
         import numpy as np
 
+        if not isinstance(data, Mapping):
+            raise ValueError(f"a result must be a JSON object; got a {type(data).__name__}")
         schema = data.get("schema")
         if schema != SCHEMA:
             raise ValueError(
                 f"not a driveid result of schema {SCHEMA!r}: got schema {schema!r}; read a "
                 "file written by --json of this driveid version")
+        # issue 28: a list where an object belongs ended in an AttributeError (exit 70)
+        if not isinstance(data.get("method"), str):
+            raise ValueError(f"'method' must be a string; got {data.get('method')!r}")
+        if not isinstance(data.get("parameters"), Mapping):
+            raise ValueError("'parameters' must be an object {name: {value, stderr, unit}}; "
+                             f"got a {type(data.get('parameters')).__name__}")
+        for key in ("data_used", "diagnostics", "covariance"):
+            if data.get(key) is not None and not isinstance(data[key], Mapping):
+                raise ValueError(f"{key!r} must be an object; got a {type(data[key]).__name__}")
+        for key in ("warnings", "inputs"):
+            if data.get(key) is not None and not isinstance(data[key], list):
+                raise ValueError(f"{key!r} must be a list; got a {type(data[key]).__name__}")
+        if any(not isinstance(i, Mapping) for i in data.get("inputs") or ()):
+            raise ValueError("every entry of 'inputs' must be an object")
         covariance = data.get("covariance")
         if covariance is not None:
             covariance = {"names": list(covariance["names"]),

@@ -563,12 +563,15 @@ def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknow
     Raises
     ------
     ParameterError
-        Over the budget: the message names the steps, the stiffest element and the fix.
+        Over the budget: the message names the steps, the stiffest element and the fix;
+        or one simulation would not fit in memory (a feedback delay of days, say).
     """
-    from driveid.sim.drive import _duration_words, estimate_drive_cost
+    from driveid.sim.drive import _duration_words, check_drive_cost, estimate_drive_cost
 
     costs = [estimate_drive_cost(params, duration=float(r.t[-1] - r.t[0]), fs=r.fs)
              for r in records]
+    for r, c in zip(records, costs, strict=True):  # each simulation's memory (issue 28)
+        check_drive_cost(c, duration=float(r.t[-1] - r.t[0]), max_steps=None)
     sims = _SIMS_PER_UNKNOWN * (n_unknowns + 1)
     steps = float(sims * sum(c.n_steps for c in costs))
     if max_steps is not None and steps > max_steps:

@@ -205,7 +205,9 @@ def _horizons(recs, first: float | None) -> list[float]:
     if not first:
         return []
     total = min(float(r.t[-1] - r.t[0]) for r in recs)
-    out, h = [], float(first)
+    # a head is never shorter than 20 samples (_head): shorter horizons would fit the same
+    # head again, about 50 times over for a segment of 1e-15 s
+    out, h = [], max(float(first), total * 20.0 / min(r.t.size for r in recs))
     while h < 0.7 * total:
         out.append(h / total)
         h *= 2.0

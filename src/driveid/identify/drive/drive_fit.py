@@ -301,6 +301,11 @@ def estimate_drive(
                                    and math.isfinite(pieces) and pieces >= 0):
         raise ParameterError(f"pieces must be a length >= 0 in seconds (0: no pieces); got "
                              f"{pieces}")
+    if segment is not None and not (isinstance(segment, (int, float, np.integer, np.floating))
+                                    and math.isfinite(segment) and segment >= 0):
+        # issue 28: a negative segment never grew to the record's length (an endless loop)
+        raise ParameterError(f"segment must be a length >= 0 in seconds (0 or None: whole "
+                             f"records; CLI --segment); got {segment}")
     if pieces and not use_u:
         raise ParameterError("a fit in pieces needs an open-loop drive (the delayed PD loop "
                              "has a history each piece would lose); drop the pieces option")

@@ -59,7 +59,7 @@ def read_drive_record(path: str | Path, *, read_kwargs: Mapping[str, Any] | None
     Raises
     ------
     FileFormatError
-        If the file has no channel of the drive.
+        If the file has no channel of the drive, or ``channels`` names one it lacks.
 
     Warns
     -----
@@ -71,6 +71,12 @@ def read_drive_record(path: str | Path, *, read_kwargs: Mapping[str, Any] | None
 
     path = Path(path)
     channels = dict(channels or {})
+    valid = {f"{kind}{i}" for i in range(1, n_bodies + 1) for kind in ("x", "v")}
+    unknown = sorted(set(channels) - valid)
+    if unknown:  # issue 28: --channel x9=... on a one-body drive was silently ignored
+        raise FileFormatError(
+            f"channel(s) {unknown} name no body of this {n_bodies}-body drive; name x1 ... "
+            f"x{n_bodies} or v1 ... v{n_bodies} (--channel x1=COLUMN)")
     kwargs = dict(read_kwargs or {})
     tolerance = kwargs.get("max_jitter", 0.01)
     table = read_table(path)

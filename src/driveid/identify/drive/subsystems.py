@@ -31,7 +31,6 @@ References
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -121,17 +120,10 @@ def estimate_subsystems(manifest: str | Path) -> Estimate:
     """
     from driveid.identify.drive.drive_fit import estimate_drive
     from driveid.identify.drive.records import read_drive_record
-    from driveid.sim.config import load_drive_config
+    from driveid.sim.config import load_drive_config, read_toml
 
     path = Path(manifest)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except OSError as exc:
-        raise ConfigError(f"cannot read the manifest {path}: {exc.strerror}; check the path"
-                          ) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path.name}: not valid TOML ({exc}); fix the syntax") from None
+    doc = read_toml(path, "manifest")
     tables = doc.get("section")
     if not isinstance(tables, list) or len(tables) < 2:
         raise ConfigError(f"{path.name}: needs two or more [[section]] tables (A, then A+B "

@@ -184,6 +184,16 @@ def estimate_transfer(record: Any, *, output: str = "v", structure: str = "tf",
         raise ParameterError(f"order (--order) must be an integer in 1..8 (poles); got {order!r}")
     if structure == "two-mass" and order is not None:
         raise ParameterError("--order is for --structure tf; the two-mass structure has its own")
+    if period is not None:
+        # issue 28: a bad period (0, or longer than the record) only dropped the data FRF,
+        # with exit 0 and no word about it
+        span = float(t[-1] - t[0])
+        if not (isinstance(period, (int, float)) and math.isfinite(period)
+                and 0 < period <= span / 2):
+            raise ParameterError(
+                f"period (--period) must be > 0 and at most half the record ({span:.4g} s), "
+                f"so that two whole periods are averaged; got {period!r}: give the period of "
+                "the multisine command, or leave the option out")
     dt = float(np.median(np.diff(t)))
     absolute = output_nonlinearity == "abs"
     quantity = "speed" if output == "v" else "position"

@@ -308,14 +308,26 @@ def two_mass_model(*, side: str, quantity: str, fixed: Mapping[str, float],
     Raises
     ------
     ParameterError
-        Unknown names, or a free gain with no mechanical parameter given (the scale of the
-        inertias is then not identifiable).
+        Unknown names, a given value outside its range (inertias and stiffness > 0,
+        dampings >= 0, gain non-zero), or a free gain with no mechanical parameter given
+        (the scale of the inertias is then not identifiable).
     """
     unknown = set(fixed) - set(TWO_MASS_PARAMETERS)
     if unknown:
         raise ParameterError(
             f"unknown two-mass parameter(s) {sorted(unknown)}; use "
             f"{', '.join(TWO_MASS_PARAMETERS)}")
+    for name, value in fixed.items():  # issue 28: --fix J_m=-1 was fitted without a word
+        positive, value = name in ("J_m", "J_l", "k"), float(value)
+        ok = math.isfinite(value) and (value > 0 if positive else
+                                       value != 0 if name == "gain" else value >= 0)
+        if not ok:
+            rule = ("> 0 (an inertia or stiffness)" if positive else
+                    "finite and non-zero (a zero gain moves nothing)" if name == "gain" else
+                    ">= 0 (a damping)")
+            raise ParameterError(
+                f"two-mass parameter {name} must be {rule}; got {name} = {value!r}: check the "
+                f"value and its SI unit (--fix {name}=VALUE)")
     if "gain" not in fixed and not {"J_m", "J_l", "k"} & set(fixed):
         raise ParameterError(
             "a free gain with free J_m, J_l and k is not identifiable (only ratios such as "

@@ -501,7 +501,8 @@ def validate_idim(estimate: Estimate, record: Record) -> IdimValidation:
     Raises
     ------
     IdentificationError
-        If ``estimate`` did not come from :func:`estimate_idim`.
+        If ``estimate`` did not come from :func:`estimate_idim`, or the record's force is
+        all zero.
     """
     diag = estimate.diagnostics
     if not estimate.method.startswith("idim-ls-") or "model" not in diag:
@@ -524,8 +525,16 @@ def validate_idim(estimate: Estimate, record: Record) -> IdimValidation:
     theta = np.where(np.isfinite(theta), theta, 0.0)
     pred = W @ theta
     err = float(np.linalg.norm(y - pred))
+    scale = float(np.linalg.norm(y))
+    if not scale > 0.0:
+        # the relative error divides by the measured force (issue 28: was a division by 0)
+        raise IdentificationError(
+            "the cross-test record's force is all zero after filtering (a free decay or an "
+            "unpowered run?), so there is no force to predict; give --validate a record of "
+            "the drive in motion with its force or torque column (--force COLUMN); got "
+            "|u| = 0")
     return IdimValidation(
-        relative_error=100.0 * err / float(np.linalg.norm(y)),
+        relative_error=100.0 * err / scale,
         error_norm=err,
         cond=float(np.linalg.cond(W)),
         t=t,
