@@ -288,9 +288,9 @@ def _expand(paths: str | Path | Iterable[str | Path]) -> list[Path]:
                          if os.path.isfile(p))
         else:
             if not Path(text).is_file():
-                from driveid.io.tables import _not_a_file
+                from driveid.io.tables import refuse_non_file
 
-                _not_a_file(Path(text))
+                refuse_non_file(Path(text))
             found.append(Path(text))
     return list(dict.fromkeys(found))
 

@@ -39,6 +39,7 @@ __all__ = [
     "check_allocation",
     "check_count",
     "check_disk",
+    "format_bytes",
     "MAX_JSON_DEPTH",
 ]
 
@@ -308,7 +309,8 @@ def available_memory() -> int:
     return int(avail)
 
 
-def _fmt_bytes(n: float) -> str:
+def format_bytes(n: float) -> str:
+    """Return ``n`` bytes in binary units for a message, e.g. ``'1.5 GiB'``."""
     for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
         if n < 1024 or unit == "PiB":
             return f"{n:.3g} {unit}"
@@ -357,8 +359,8 @@ def check_allocation(n_samples: float, bytes_per_sample: float, what: str, *,
     if need > limit:
         hint = override or "shorten the request (duration, rate or grid)"
         raise ParameterError(
-            f"{what} needs about {_fmt_bytes(need)} ({n_samples:.3g} samples x "
-            f"{bytes_per_sample:g} B), more than the {_fmt_bytes(limit)} of memory available; "
+            f"{what} needs about {format_bytes(need)} ({n_samples:.3g} samples x "
+            f"{bytes_per_sample:g} B), more than the {format_bytes(limit)} of memory available; "
             f"{hint}")
     return int(n_samples)
 
@@ -394,8 +396,8 @@ def check_disk(n_bytes: float, folder: str | Path, what: str, *, override: str) 
     free = shutil.disk_usage(where).free
     if n_bytes > free:
         raise ParameterError(
-            f"{what} would write about {_fmt_bytes(n_bytes)}, more than the "
-            f"{_fmt_bytes(free)} free on the disk of {where}; {override}")
+            f"{what} would write about {format_bytes(n_bytes)}, more than the "
+            f"{format_bytes(free)} free on the disk of {where}; {override}")
 
 
 #: Most runs a campaign plans without an explicit override (CLI ``--max-runs``): the

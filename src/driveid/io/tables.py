@@ -42,7 +42,7 @@ from driveid.errors import FileFormatError
 from driveid.io.units import known_unit as _known_unit
 from driveid.io.units import normalise_unit, split_header
 
-__all__ = ["Table", "read_table", "table_from_dataframe", "READABLE_SUFFIXES"]
+__all__ = ["Table", "read_table", "table_from_dataframe", "refuse_non_file", "READABLE_SUFFIXES"]
 
 _TEXT = (".csv", ".txt", ".dat", ".tsv", ".asc", ".prn")
 #: File suffixes :func:`read_table` reads.
@@ -94,7 +94,7 @@ class Table:
         return max((c.size for c in self.columns.values()), default=0)
 
 
-def _not_a_file(path: Path) -> None:
+def refuse_non_file(path: Path) -> None:
     """Raise the error for a record path that is no regular file (missing, folder, device)."""
     if path.is_dir():  # issue 28: a folder was reported as 'no such record file'
         raise IsADirectoryError(
@@ -131,7 +131,7 @@ def read_table(path: str | Path) -> Table:
     """
     path = Path(path)
     if not path.is_file():
-        _not_a_file(path)
+        refuse_non_file(path)
     suffix = path.suffix.lower()
     readers = {".json": _read_json, ".mat": _read_mat, ".npz": _read_npz,
                ".parquet": _read_parquet, ".pq": _read_parquet, ".h5": _read_hdf5,

@@ -310,15 +310,15 @@ def check_drive_cost(cost: DriveCost, *, duration: float,
         ``max_steps`` steps; the message names the estimate, the stiffest element and the
         fix.
     """
-    from driveid.io.consistency import _fmt_bytes, available_memory, check_allocation
+    from driveid.io.consistency import available_memory, check_allocation, format_bytes
 
     free = available_memory()
     if cost.memory + cost.history > free and cost.history > cost.memory:
         # issue 28: [feedback] delay = 1e6 s allocated its ring in the kernel: "out of memory"
         raise ParameterError(
             f"simulate_drive: the feedback's state history needs about "
-            f"{_fmt_bytes(cost.history)} ({cost.n_steps:.3g} grid steps of {cost.step:.2g} s "
-            f"and the delay's ring, 32 B a step each), more than the {_fmt_bytes(free)} of "
+            f"{format_bytes(cost.history)} ({cost.n_steps:.3g} grid steps of {cost.step:.2g} s "
+            f"and the delay's ring, 32 B a step each), more than the {format_bytes(free)} of "
             "memory available; shorten the feedback delay ([feedback] delay, a few control "
             "periods in a real drive) or the duration")
     check_allocation(cost.n_samples, (cost.memory + cost.history) / cost.n_samples,
