@@ -310,7 +310,18 @@ def available_memory() -> int:
 
 
 def format_bytes(n: float) -> str:
-    """Return ``n`` bytes in binary units for a message, e.g. ``'1.5 GiB'``."""
+    """Return a byte count in binary units for a message, e.g. ``'1.5 GiB'``.
+
+    Parameters
+    ----------
+    n : float
+        Bytes [B].
+
+    Returns
+    -------
+    str
+        Three significant digits and the unit (B, KiB … PiB).
+    """
     for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
         if n < 1024 or unit == "PiB":
             return f"{n:.3g} {unit}"

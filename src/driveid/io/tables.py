@@ -95,7 +95,22 @@ class Table:
 
 
 def refuse_non_file(path: Path) -> None:
-    """Raise the error for a record path that is no regular file (missing, folder, device)."""
+    """Raise the error for a record path that is no regular file (missing, folder, device).
+
+    Parameters
+    ----------
+    path : Path
+        The path a user named as a record file.
+
+    Raises
+    ------
+    IsADirectoryError
+        A folder (the message names a file in it and the fleet's pattern form).
+    FileFormatError
+        A device, pipe or socket.
+    FileNotFoundError
+        Nothing there.
+    """
     if path.is_dir():  # issue 28: a folder was reported as 'no such record file'
         raise IsADirectoryError(
             f"{path} is a folder, not a record file; name a file in it (e.g. {path}/run.csv), "
