@@ -386,29 +386,18 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
     noise = {ch: max(_channel_noise(rec.channels[ch]) for rec in recs if ch in rec.channels)
              for ch in {c for rec in recs for c in rec.channels}}
     first = None
-    ran: list = []  # every other stage's simulators, for the simulation count
+    ran: list = []  # every stage's simulators, for the simulation count
+
+    def fit(cut, params, simulated, own):
+        return _fit_pieces(cut, params, simulated, start, names, every_state, input_body,
+                           use_u, torque, parallel, max_nfev, noise_model, noise, own, ran,
+                           progress)
+
     while True:
         cut, origin = cut_pieces(recs, length)
         simulated = piece_states(st["problems"], zs, origin)
-        # each piece's state alone first, the parameters held at the whole-record fit's: a
-        # start state off by the whole-record fit's drift would otherwise pull the shared
-        # parameters towards a local minimum of the joint fit; from the simulated and from
-        # the measured state, the better kept piece by piece
-        tried = []
-        locked = [b.locked for b in start.bodies]
-        for cand in (simulated, measured_states(cut, simulated, locked)):
-            pre = _stage(cut, whole, start, [], every_state, None, None, input_body, use_u,
-                         torque, parallel, max_nfev, False, cand, progress=progress)
-            ran.extend(pre["problems"])
-            tried.append((piece_costs(pre["fit"], pre["sol"].x, noise),
-                          _states_of(pre, pre["sol"].x * pre["scale_all"], 0)))
-        (cost_a, states_a), (cost_b, states_b) = tried
-        starts = [b if cb < ca else a for a, b, ca, cb
-                  in zip(states_a, states_b, cost_a, cost_b, strict=True)]
-        st2 = _stage(cut, whole, start, names, every_state, None, None, input_body, use_u,
-                     torque, parallel, max_nfev, noise_model, starts, progress=progress)
         own: list[str] = []
-        fin2 = _finish(st2, cut, own)
+        fin2, st2 = fit(cut, whole, simulated, own)
         bad = [k for k, w in fin2["white"].items() if not w["white"]]
         n_ch = len(fin2["white"])
         if len(bad) <= n_ch // 10 + 1 or not halve or first is not None:
@@ -416,11 +405,8 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
         # a piece still too long for this drive (the benchmark's two-body drive: 6 of 24
         # channels not white in 5 of 32 runs at 0.5 s; docs/drive-fit.md)
         first = {"length": float(length), "not_white": len(bad), "channels": n_ch}
-        ran.extend(st2["problems"])
         length = length / 2.0
-    fin2, st2, ridge, restarted = _ridge_restarts(
-        fin2, st2, cut, whole, start, names, every_state, input_body, use_u, torque, parallel,
-        max_nfev, noise_model, noise, own, progress)
+    fin2, st2, ridge = _ridge_restarts(fin2, st2, cut, whole, names, noise, own, fit)
     bad = [k for k, w in fin2["white"].items() if not w["white"]]
     warnings.extend(w for w in own if "ended at its bound" in w or "identifiable" in w
                     or "without converging" in w)
@@ -433,7 +419,7 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
     out = dict(fin)
     out.update(theta=theta, cov=cov, held=held, stage=st2, cond=fin2["cond"], s2=fin2["s2"],
                nfev=fin["nfev"] + fin2["nfev"],
-               problems=fin["problems"] + fin2["problems"] + ran + restarted,
+               problems=fin["problems"] + ran,
                cov_method=f"{fin2['cov_method']}, {len(cut)} pieces of {length:g} s",
                pieces={"done": True, "length": float(length), "n_pieces": len(cut),
                        "pieces_not_white": len(bad), "piece_channels": n_ch,
@@ -463,9 +449,34 @@ def _refit_in_pieces(fin, st, recs, length, base, start, names, input_body, use_
     return out
 
 
-def _ridge_restarts(fin, st, cut, whole, start, names, every_state, input_body, use_u,
-                    torque, parallel, max_nfev, noise_model, noise, warnings,
-                    progress=None) -> tuple[dict, dict, dict, list]:
+def _fit_pieces(cut, params, simulated, start, names, every_state, input_body, use_u, torque,
+                parallel, max_nfev, noise_model, noise, own, ran, progress=None):
+    """Fit the pieces from ``params``: each piece's state alone, then states and parameters.
+
+    Each piece's state is fitted alone first, the parameters held at ``params``: a start
+    state off by the whole-record fit's drift would otherwise pull the shared parameters
+    towards a local minimum of the joint fit; from the ``simulated`` and from the measured
+    state, the better kept piece by piece. Every stage's simulators are appended to
+    ``ran`` (the simulation count); the joint fit's warnings to ``own``.
+    """
+    tried = []
+    locked = [b.locked for b in start.bodies]
+    for cand in (simulated, measured_states(cut, simulated, locked)):
+        pre = _stage(cut, params, start, [], every_state, None, None, input_body, use_u,
+                     torque, parallel, max_nfev, False, cand, progress=progress)
+        ran.extend(pre["problems"])
+        tried.append((piece_costs(pre["fit"], pre["sol"].x, noise),
+                      _states_of(pre, pre["sol"].x * pre["scale_all"], 0)))
+    (cost_a, states_a), (cost_b, states_b) = tried
+    starts = [b if cb < ca else a for a, b, ca, cb
+              in zip(states_a, states_b, cost_a, cost_b, strict=True)]
+    st2 = _stage(cut, params, start, names, every_state, None, None, input_body, use_u,
+                 torque, parallel, max_nfev, noise_model, starts, progress=progress)
+    ran.extend(st2["problems"])
+    return _finish(st2, cut, own), st2
+
+
+def _ridge_restarts(fin, st, cut, whole, names, noise, warnings, fit) -> tuple[dict, dict, dict]:
     """Restart the pieces' fit along its longest axis of uncertainty; keep the lowest cost.
 
     The benchmark's two-body drive (seeds 35, 42, 60, 117 of 200): the pieces' fit stopped
@@ -477,7 +488,8 @@ def _ridge_restarts(fin, st, cut, whole, start, names, every_state, input_body, 
     squared residual by more than :data:`RIDGE_GAIN` noise variances (two standard errors'
     worth) is followed; a round where the way that paid last pays nothing tries the other
     way, then both at twice the distance; at most :data:`RIDGE_ROUNDS` rounds and
-    :data:`RIDGE_TRIES` restarts.
+    :data:`RIDGE_TRIES` restarts. ``fit(cut, params, states, warnings)`` is the pieces'
+    fit (:func:`_fit_pieces`), its piece states started where the best fit so far has them.
     """
     p = len(names)
     n_obs = sum(len(prob.channels) * r.t.size for prob, r in zip(st["problems"], cut,
@@ -488,8 +500,8 @@ def _ridge_restarts(fin, st, cut, whole, start, names, every_state, input_body, 
 
     best = (cost(fin, st), fin, st)
     log = {"cost_to_noise": best[0], "tried": 0, "taken": 0}
-    ran: list = list(st["problems"])
     follow = 0.0
+    zero = np.zeros(len(st["states0"][0][0]))
     # near the noise no restart; once one has paid, the fit is known to stall, so the
     # rounds go on while they pay (seed 35: 1.30 -> 1.001 of the noise and still 6 s.e.
     # off after one, within 0.1 % after three)
@@ -504,7 +516,7 @@ def _ridge_restarts(fin, st, cut, whole, start, names, every_state, input_body, 
         axis = np.zeros(p)
         axis[ok] = vec[:, -1] * math.sqrt(max(lam[-1], 0.0)) * sd[ok]
         theta = best[1]["theta"]
-        starts = _states_of(best[2], theta, p)
+        states = _states_of(best[2], theta, p)
         # the way that paid first, then the other, then both twice as far (seed 117: one
         # step took it from c_2 -35 % to -18 %, the next along the same way paid nothing)
         tries = ([(follow, 1.0), (-follow, 1.0)] if follow else [(-1.0, 1.0), (1.0, 1.0)]) \
@@ -513,16 +525,11 @@ def _ridge_restarts(fin, st, cut, whole, start, names, every_state, input_body, 
         for k, (sg, far) in enumerate(tries):
             if log["tried"] >= RIDGE_TRIES:
                 break
-            trial, _, _ = with_values(whole, np.zeros(start.n_bodies),
-                                      np.zeros(start.n_bodies),
+            trial, _, _ = with_values(whole, zero, zero,
                                       dict(zip(names, theta[:p] + sg * far * RIDGE_STEP * axis,
                                                strict=True)))
-            st_b = _stage(cut, trial, start, names, every_state, None, None, input_body,
-                          use_u, torque, parallel, max_nfev, noise_model, starts,
-                          progress=progress)
             own: list[str] = []
-            fin_b = _finish(st_b, cut, own)
-            ran.extend(st_b["problems"])
+            fin_b, st_b = fit(cut, trial, states, own)
             log["tried"] += 1
             c_b = cost(fin_b, st_b)
             if (round_best[0] - c_b) * n_obs > RIDGE_GAIN:
@@ -537,8 +544,7 @@ def _ridge_restarts(fin, st, cut, whole, start, names, every_state, input_body, 
         log["taken"] += 1
         warnings[:] = kept
     log["final_cost_to_noise"] = best[0]
-    kept_ids = {id(q) for q in best[2]["problems"]}
-    return best[1], best[2], log, [q for q in ran if id(q) not in kept_ids]
+    return best[1], best[2], log
 
 
 def _result(start, base, names, all_names, theta, cov, recs, problems, states0, at_bound,
