@@ -176,5 +176,9 @@ def test_identify_drive_says_in_words_whether_it_fitted_pieces():
     halved = _pieces_line({"done": True, "length": 0.25, "n_pieces": 24, "halved_from": {
         "length": 0.5, "not_white": 6, "channels": 24}})
     assert "0.5 s pieces left 6 of 24 channels not white" in halved
+    restarted = _pieces_line({"done": True, "length": 0.5, "n_pieces": 12, "ridge_restarts": {
+        "cost_to_noise": 1.32, "tried": 4, "taken": 3, "final_cost_to_noise": 0.96}})
+    assert "stalled at 1.32 times" in restarted and "restarted 4 times" in restarted
+    assert "3 kept, now 0.96 times" in restarted
     assert _pieces_line({"done": False, "whole_record_white": True}) == \
         "fit: the whole record"

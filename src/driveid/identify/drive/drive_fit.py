@@ -80,7 +80,12 @@ goes on (``pieces``; automatic for an open-loop drive with backlash or a poor re
 with the records cut into short pieces, each with its own initial state started where the
 whole-record fit's simulation passes (states first fitted alone, parameters held), and
 reports that fit's values and covariance: over a short piece the output depends smoothly
-on the parameters again (:mod:`driveid.identify.drive._drive_pieces`).
+on the parameters again (:mod:`driveid.identify.drive._drive_pieces`). Where the pieces'
+squared residual stays above :data:`RIDGE_COST` times the noise's, the pieces' fit is
+restarted a few standard deviations along the principal axis of its own covariance and
+the lowest-cost fit kept (:func:`_ridge_restarts`): the pieces inherit a poor minimum
+from the whole-record fit (motor viscous friction high, load's low) that their solver does
+not leave unaided.
 
 References
 ----------
@@ -233,6 +238,9 @@ def estimate_drive(
         whole-record residual is not white or stays above 1.5 times the noise (a drive so
         sensitive that its whole-record error bars are far too short), halved to 0.25 s
         once where more than a tenth of the pieces' channels are not white; 0: never.
+        Where the pieces' squared residual stays above 1.15 times the noise's, restarts
+        along the fit's principal axis of uncertainty, the lowest cost kept
+        (``diagnostics["pieces"]["ridge_restarts"]``).
 
     Returns
     -------
