@@ -185,13 +185,13 @@ def choose_columns(table: Table, columns: Mapping[str, str | int] | None = None,
         If an explicit choice names no column, or a name fits several columns (all such
         problems of the file in one message, the candidates listed).
     """
-    chosen, _, problems = _choose(table, columns)
+    chosen, _, problems = _choose(table, columns, source=source)
     if problems:
         raise FileFormatError(_joined(source or "the file", problems))
     return chosen
 
 
-def _choose(table: Table, columns: Mapping[str, str | int] | None
+def _choose(table: Table, columns: Mapping[str, str | int] | None, source: str = ""
             ) -> tuple[dict[str, str], list[str], list[str]]:
     """Return the chosen columns, the notes showing each non-obvious choice, the problems."""
     from driveid.io.columns import parse_column_name, rank_candidates
@@ -246,6 +246,10 @@ def _choose(table: Table, columns: Mapping[str, str | int] | None
                     f"{table.units[top[0].name]}); {OPTION_OF_COLUMN[col]} COL chooses another")
             continue
         pick = top[0]
+        twin = _repeated_header(table, pick.name, col, source)
+        if twin:
+            problems.append(twin)
+            continue
         chosen[col] = pick.name
         if col != "t" and joint is None and pick.joint is not None and pick.convention:
             joint = pick.joint
@@ -267,6 +271,60 @@ def _choose(table: Table, columns: Mapping[str, str | int] | None
                 f"{pick.name!r} is read as joint velocity (q-dot); if it is the desired "
                 "position, give --velocity none")
     return chosen, notes, problems
+
+
+def _repeated_header(table: Table, name: str, col: str, source: str = "") -> str | None:
+    """Check a column found by its name against the other columns of the same header.
+
+    A header the file repeats (``x``, read as ``x`` and ``x.1``) is no unique name: with
+    the same values in every such column, the first is read and a
+    :class:`~driveid.errors.RecordWarning` says so; with different values, the returned
+    problem asks for a choice by index (issue 28).
+    """
+    header = next((h for h, names in table.repeated.items() if name in names), None)
+    if header is None:
+        return None
+    names = list(table.columns)
+    twins = table.repeated[header]
+    where = ", ".join(f"[{names.index(n)}] {n!r}" for n in twins)
+    first = table.columns[twins[0]]
+    if all(np.array_equal(first, table.columns[n], equal_nan=True) for n in twins[1:]):
+        import warnings
+
+        from driveid.errors import RecordWarning
+
+        warnings.warn(
+            f"{source + ': ' if source else ''}the header {header!r} names {len(twins)} "
+            f"columns ({where}) with the same "
+            f"values; read [{names.index(name)}] {name!r} as the {_WORDS[col]}; "
+            f"rename the copies in the file, or choose one with {OPTION_OF_COLUMN[col]} INDEX",
+            RecordWarning, stacklevel=5)
+        return None
+    return (f"the header {header!r} names {len(twins)} columns with different values "
+            f"({where}), so the {_WORDS[col]} is ambiguous; choose one with "
+            f"{OPTION_OF_COLUMN[col]} INDEX (0-based), or rename the columns in the file")
+
+
+def _check_time_precision(t: np.ndarray, dtype: str | None, fname: str, source: str) -> None:
+    """Refuse a time column stored in a float type too narrow for its sampling interval.
+
+    float16 keeps 11 bits: at 6 s its steps are 4 ms, so a 1 kHz clock repeats its stamps
+    and the record reads as "not increasing" (issue 28). Refused where the type's
+    resolution near the column's end exceeds a tenth of the mean sampling interval.
+    """
+    if dtype is None or t.size < 2:
+        return
+    span = abs(float(t[-1]) - float(t[0]))
+    step = span / (t.size - 1)
+    top = float(np.max(np.abs(t)))
+    resolution = float(np.finfo(dtype).eps) * top
+    if resolution > 0.1 * step:
+        raise FileFormatError(
+            f"{source}: the time column {fname!r} is stored as {dtype}, whose precision near "
+            f"its end ({top:.3g} s) is about {resolution:.2g} s, too coarse for a sampling "
+            f"interval of {step:.2g} s (time stamps repeat or jump); export the time column "
+            "as float64 (double), or give the sample rate with --fs HZ and --time none "
+            "(Python: fs=HZ, columns={'t': 'none'})")
 
 
 def _by_unit(table: Table, free: list[str], col: str) -> list[Any]:
@@ -519,10 +577,11 @@ def convert_table(
         Every column and unit problem of the file, in one message.
     """
     name = Path(source).name if source else "the data"
-    chosen, notes, problems = _choose(table, columns)
+    chosen, notes, problems = _choose(table, columns, source=name)
+    # already reported: no second 'not found' for them
     unresolved = {c for c in COLUMN_ALIASES if any(
         f"the {_WORDS[c]} ({OPTION_OF_COLUMN[c]})" in p or f"could be the {_WORDS[c]}:" in p
-        for p in problems)}  # already reported: no second 'not found' for them
+        or f"so the {_WORDS[c]} is ambiguous" in p for p in problems)}
     explicit_time = columns is not None and str(columns.get("t") or "").strip().lower() not in (
         "", "none")
     if fs is not None:
@@ -649,6 +708,8 @@ def convert_table(
             f"{name}: the columns chosen hold no samples (empty arrays); a record needs at "
             f"least {MIN_SAMPLES} samples: export the data again, or choose other columns "
             "(--time/--position)")
+    if "t" in chosen:
+        _check_time_precision(arrays["t"], table.precision.get(chosen["t"]), chosen["t"], name)
     _complete_units(si, applied_scale)
     translational = si.get("x", "").startswith("m") or (
         "x" not in si and si.get("v", "").startswith("m/"))

@@ -76,6 +76,9 @@ class Table:
     repeated : dict of str to list of str
         A header name the file repeats -> the column names it was given (``pos``,
         ``pos.1`` ...): asking for that name is ambiguous.
+    precision : dict of str to str
+        Column name -> the narrow float type it was stored in (``"float16"``,
+        ``"float32"``); columns read as float64 (all text) are not listed.
     """
 
     columns: dict[str, np.ndarray]
@@ -87,6 +90,7 @@ class Table:
     format: str = ""
     notes: dict[str, str] = field(default_factory=dict)
     repeated: dict[str, list[str]] = field(default_factory=dict)
+    precision: dict[str, str] = field(default_factory=dict)
 
     @property
     def rows(self) -> int:
@@ -185,6 +189,7 @@ def table_from_dataframe(df: Any, *, source: str = "dataframe") -> Table:
     columns: dict[str, np.ndarray] = {}
     units: dict[str, str] = {}
     repeated: dict[str, list[str]] = {}
+    precision: dict[str, str] = {}
     for header in df.columns:
         name, unit = split_header(str(header))
         unique = _unique(name, columns)
@@ -194,11 +199,14 @@ def table_from_dataframe(df: Any, *, source: str = "dataframe") -> Table:
         values = df[header].to_numpy()
         if values.dtype.kind in "biuf":
             columns[name] = values.astype(float)
+            if values.dtype.kind == "f" and values.dtype.itemsize < 8:
+                precision[name] = values.dtype.name
         else:
             columns[name] = values  # checked when chosen: a text column may go unused
         if unit:
             units[name] = unit
-    return Table(columns=columns, units=units, format=source, repeated=repeated)
+    return Table(columns=columns, units=units, format=source, repeated=repeated,
+                 precision=precision)
 
 
 # -- delimited text -----------------------------------------------------------------------
@@ -527,6 +535,7 @@ class _Collector:
         self.columns: dict[str, np.ndarray] = {}
         self.units: dict[str, str] = {}
         self.scalars: dict[str, float] = {}
+        self.precision: dict[str, str] = {}
 
     def array(self, name: str, value: Any, unit: str | None = None,
               transposed: bool = False) -> None:
@@ -547,9 +556,12 @@ class _Collector:
             self.scalars[base] = float(arr)
         elif arr.ndim == 1:
             # a fresh float column (np.load, h5py) is kept, not copied (8 B a sample)
-            self.columns[_unique(base, self.columns)] = arr.astype(float, copy=False)
+            key = _unique(base, self.columns)
+            self.columns[key] = arr.astype(float, copy=False)
             if unit:
                 self.units[base] = unit
+            if arr.dtype.kind == "f" and arr.dtype.itemsize < 8:
+                self.precision[key] = arr.dtype.name
         elif arr.ndim == 2:
             if arr.shape[0] < arr.shape[1]:
                 arr = arr.T  # samples along the longer axis
@@ -557,6 +569,8 @@ class _Collector:
                 self.columns[f"{base}:{i}"] = arr[:, i].astype(float)
                 if unit:
                     self.units[f"{base}:{i}"] = unit
+                if arr.dtype.kind == "f" and arr.dtype.itemsize < 8:
+                    self.precision[f"{base}:{i}"] = arr.dtype.name
 
     def nested(self, prefix: str, node: Any) -> None:
         join = (lambda k: f"{prefix}.{k}") if prefix else (lambda k: str(k))
@@ -594,7 +608,8 @@ class _Collector:
 
     def table(self, **kwargs: Any) -> Table:
         units = {k: v for k, v in self.units.items() if k in self.columns}
-        return Table(columns=self.columns, units=units, scalars=self.scalars, **kwargs)
+        return Table(columns=self.columns, units=units, scalars=self.scalars,
+                     precision=self.precision, **kwargs)
 
 
 def _as_array(value: Any) -> np.ndarray | None:
@@ -684,16 +699,15 @@ def _read_mat(path: Path) -> Table:
     if b"MATLAB 7.3" in head or head.startswith(b"\x89HDF"):
         return _read_hdf5(path, matlab=True)
     from scipy.io import loadmat
+    from scipy.io.matlab import MatReadError
 
     try:
         raw = loadmat(path, simplify_cells=True)
     except NotImplementedError:
         return _read_hdf5(path, matlab=True)
-    except (ValueError, TypeError, OSError, IndexError, EOFError, KeyError) as exc:
+    except (ValueError, TypeError, OSError, IndexError, EOFError, KeyError, MatReadError):
         # scipy raises IndexError/KeyError on a garbled header: a damaged file, not a bug
-        raise FileFormatError(
-            f"{path.name}: cannot read as a MATLAB .mat file ({type(exc).__name__}); save it "
-            "in MATLAB with save(FILE, '-v7') or '-v7.3'") from None
+        raise FileFormatError(_not_mat(path, head)) from None
     collector = _Collector()
     meta: dict[str, Any] = {}
     for key, value in raw.items():
@@ -707,6 +721,27 @@ def _read_mat(path: Path) -> Table:
         else:
             collector.array(key, value)
     return collector.table(meta=meta, format="mat v5")
+
+
+def _not_mat(path: Path, head: bytes) -> str:
+    """Say why a ``.mat`` file scipy cannot read is none (text, no header) or damaged."""
+    fix = "save it in MATLAB with save(FILE, '-v7') or '-v7.3'"
+    if not head:
+        return f"{path.name} is empty, not a MATLAB .mat file; {fix}"
+    try:
+        start = head.decode("utf-8")
+    except UnicodeDecodeError:  # also a multi-byte character cut at byte 128: not text
+        start = None
+    if start is not None and all(c.isprintable() or c in "\r\n\t" for c in start):
+        # issue 28: said '(IndexError)'
+        return (f"{path.name} is text, not a MATLAB .mat file (a .mat file is binary with a "
+                "'MATLAB 5.0 MAT-file' header); if it holds delimited columns, rename it to "
+                f".csv; otherwise {fix}")
+    if head[126:128] not in (b"IM", b"MI"):
+        return (f"{path.name} is not a MATLAB .mat file: it has no MAT-file header (another "
+                f"format named .mat?); {fix}")
+    return (f"{path.name} has a MATLAB .mat header but its contents cannot be read (damaged "
+            f"or cut short); {fix}")
 
 
 def _read_hdf5(path: Path, matlab: bool = False) -> Table:
