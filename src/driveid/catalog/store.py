@@ -29,7 +29,7 @@ import sqlalchemy as sa
 from driveid._json import to_jsonable
 from driveid.catalog import _schema as S
 from driveid.errors import ConfigError, FileFormatError
-from driveid.identify.core.estimate import Parameter
+from driveid.identify.core.estimate import Parameter, non_finite_problem
 from driveid.io.reading import file_sha256
 
 __all__ = [
@@ -397,7 +397,8 @@ class Catalog:
         Raises
         ------
         FileFormatError
-            If ``result`` is not in the result schema.
+            If ``result`` is not in the result schema, or a parameter's value or standard
+            error is NaN or infinite (not null).
         """
         return self._insert(**self._result_row(result, machine=machine, axis=axis,
                                                measured_at=measured_at,
@@ -715,6 +716,12 @@ def _parse_result(result: Mapping[str, Any]):
                                           str(p.get("unit") or "-"), bool(p.get("fixed", False)))
         except (TypeError, ValueError):
             raise FileFormatError(f"parameter {name!r} has a non-numeric value: {p!r}") from None
+        for what in ("value", "stderr"):  # issue 28: NaN and 1e999 (inf) were catalogued
+            problem = p.get(what) is not None and non_finite_problem(
+                what, getattr(params[str(name)], what))
+            if problem:
+                raise FileFormatError(f"parameter {name!r}: {problem}; correct the file or "
+                                      "write it again with --json")
     cov = None
     raw_cov = result.get("covariance")
     if raw_cov:

@@ -84,8 +84,11 @@ def catalog_add_command(results, machine, axis, machine_type, measured_at, catal
             except (json.JSONDecodeError, UnicodeDecodeError) as exc:
                 raise FileFormatError(f"{path} is not JSON ({exc}); pass the output of "
                                       "'driveid identify ... --json'") from None
-            out = cat.add_result(result, machine=machine, axis=axis, measured_at=measured_at,
-                                 machine_type=machine_type)
+            try:
+                out = cat.add_result(result, machine=machine, axis=axis,
+                                     measured_at=measured_at, machine_type=machine_type)
+            except FileFormatError as exc:  # name the file: several may be added at once
+                raise FileFormatError(f"{path}: {exc}") from None
             state = "added" if out.created else "already catalogued"
             click.echo(f"{path}: {state} as entry {out.entry_id}")
 

@@ -26,7 +26,7 @@ from typing import Any
 
 from driveid._json import to_jsonable
 
-__all__ = ["Parameter", "Estimate", "SCHEMA", "inputs_of"]
+__all__ = ["Parameter", "Estimate", "SCHEMA", "inputs_of", "non_finite_problem"]
 
 #: Name and version of the result schema; changes that break readers bump the number.
 SCHEMA = "driveid-result/1"
@@ -82,21 +82,27 @@ class Parameter:
         Raises
         ------
         ValueError
-            If ``data`` is not an object, or a value or standard error is not a number.
+            If ``data`` is not an object, a value or standard error is not a number or null,
+            the value is ``NaN`` or infinite, or the standard error infinite (``1e999``
+            reads as infinity; :meth:`to_dict` writes a missing number as null, and a
+            ``NaN`` standard error is read as missing).
         """
         if not isinstance(data, Mapping):  # issue 28: a hand-edited result ended in exit 70
             raise ValueError("a parameter must be an object {value, stderr, unit}; got a "
                              f"{type(data).__name__}")
 
-        def number(v: Any) -> float:
+        def number(v: Any, what: str) -> float:
             if v is None:
                 return math.nan
             if isinstance(v, bool) or not isinstance(v, numbers.Real):
                 raise ValueError(f"a parameter's value and stderr must be numbers or null; "
                                  f"got {v!r}")
+            problem = non_finite_problem(what, float(v))
+            if problem:  # issue 28: NaN or 1e999 (inf) reported as an estimate
+                raise ValueError(problem)
             return float(v)
 
-        return cls(number(data.get("value")), number(data.get("stderr")),
+        return cls(number(data.get("value"), "value"), number(data.get("stderr"), "stderr"),
                    str(data.get("unit", "-")), bool(data.get("fixed", False)))
 
 
@@ -214,7 +220,8 @@ class Estimate:
         Raises
         ------
         ValueError
-            If ``data`` is not of schema ``driveid-result/1``.
+            If ``data`` is not of schema ``driveid-result/1``, or a parameter's value or
+            standard error is not a finite number or null.
         """
         import numpy as np
 
@@ -245,7 +252,7 @@ class Estimate:
                           "matrix": np.array(covariance["matrix"], dtype=float)}
         return cls(
             method=str(data["method"]),
-            params={k: Parameter.from_dict(v) for k, v in data["parameters"].items()},
+            params={k: _parameter(k, v) for k, v in data["parameters"].items()},
             data_used=dict(data.get("data_used") or {}),
             diagnostics=dict(data.get("diagnostics") or {}),
             warnings=tuple(data.get("warnings") or ()),
@@ -424,6 +431,36 @@ class Estimate:
         for name, row in frame.iterrows():
             params[str(name)] = {k: (None if _is_missing(v) else v) for k, v in row.items()}
         return cls.from_dict({**frame.attrs, "parameters": params})
+
+
+def non_finite_problem(what: str, number: float) -> str | None:
+    """Return why a parameter's number read from a result file is refused, or None.
+
+    Parameters
+    ----------
+    what : {"value", "stderr"}
+        Which number of the parameter.
+    number : float
+        The number as read (JSON ``NaN`` is nan, ``1e999`` and ``Infinity`` are inf).
+
+    Returns
+    -------
+    str or None
+        The reason for a ``NaN`` or infinite value or an infinite standard error; None
+        for a finite number or a ``NaN`` standard error (missing, as null).
+    """
+    if math.isfinite(number) or (what == "stderr" and math.isnan(number)):
+        return None
+    return (f"a parameter's {'standard error' if what == 'stderr' else 'value'} must be a "
+            f"finite number or null (driveid writes a missing number as null); got {number!r}")
+
+
+def _parameter(name: str, data: Any) -> Parameter:
+    """:meth:`Parameter.from_dict`, its refusal naming the parameter."""
+    try:
+        return Parameter.from_dict(data)
+    except ValueError as exc:
+        raise ValueError(f"parameter {name!r}: {exc}") from None
 
 
 def _digits(value: float, stderr: float) -> int:
