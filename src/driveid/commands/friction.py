@@ -231,6 +231,7 @@ def friction_map_command(files, models, rel_tol, min_samples, min_speed, max_spe
     EPOS exports (e.g. screw_drive_friction_TRO2021/driveNo1/steady_state/0.096kg).
     """
     from driveid.identify.friction.friction_map import (
+        BRANCH_MAPS,
         binned_points,
         estimate_friction_map,
         read_tro2021_steady_state,
@@ -238,6 +239,11 @@ def friction_map_command(files, models, rel_tol, min_samples, min_speed, max_spe
     )
     from driveid.report.friction_figures import plot_friction_map
 
+    names = tuple(m.strip() for m in models.split(",") if m.strip())
+    if not names:  # issue 28: an empty list fitted Coulomb + viscous alone, without a word
+        raise click.BadParameter(
+            f"--models names no map; give one or more of {', '.join(sorted(BRANCH_MAPS))}, "
+            "comma-separated, or leave the option out for the default four")
     opts = _legacy(record_opts, force_column, force_scale, units)
     records = []
     for f in files:
@@ -246,7 +252,6 @@ def friction_map_command(files, models, rel_tol, min_samples, min_speed, max_spe
             records += read_tro2021_steady_state(path)
         else:
             records.append(opts.read(f, position=False))  # speed-only logs will do
-    names = tuple(m.strip() for m in models.split(",") if m.strip())
     points = []
     for rec in records:
         if inertia is not None:

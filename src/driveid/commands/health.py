@@ -9,6 +9,7 @@ import click
 
 from driveid.commands import clean_errors
 from driveid.commands._checks import BoundedInt
+from driveid.commands._output import cli_text
 from driveid.commands.catalog import catalog_option, open_catalog
 from driveid.errors import ConfigError
 
@@ -96,6 +97,8 @@ def health_command(axis_spec, blueprint_path, alpha, watch_alpha, baseline, as_j
         raise ConfigError(f"no catalogued identification of {machine}/{axis}; see "
                           "'driveid catalog list'")
     result = assess_axis(found, bp, alpha=alpha, watch_alpha=watch_alpha, baseline=baseline)
+    for note in result.notes:  # what the verdict does not cover (issue 28)
+        click.echo(f"note: {machine}/{axis}: {cli_text(note)}", err=True)
     if figure is not None:
         from driveid.report.figures import save_figure
 

@@ -151,15 +151,36 @@ def _read_signals(spec: str, *, input_col: str, output_col: str, quantity: str,
     return _Signals(t=arrays["t"], u=arrays["u"], meta=meta, **{out: arrays[out]})
 
 
+def _check_input_unit(unit: str) -> str:
+    """Return ``--input-unit`` spelled canonically; refuse a non-force/torque/electrical one."""
+    from driveid.io.units import ELECTRICAL_UNITS, UNIT_CONVERSIONS, normalise_unit
+
+    known = [*UNIT_CONVERSIONS["u"], *ELECTRICAL_UNITS]
+    if normalise_unit(unit) not in known:
+        raise click.BadParameter(
+            f"--input-unit {unit!r} is no unit driveid knows for a command; known units: "
+            f"{', '.join(known)}; give one of them, or leave the option out to keep the "
+            "file's unit")
+    return normalise_unit(unit)
+
+
 def _fixed(fix: tuple[str, ...], free: tuple[str, ...]) -> dict[str, float]:
     from driveid.identify.forced.transfer_models import TWO_MASS_DEFAULT_FIXED, TWO_MASS_PARAMETERS
 
     fixed = {k: v for k, v in TWO_MASS_DEFAULT_FIXED.items() if k not in free}
+    held = ", ".join(TWO_MASS_DEFAULT_FIXED)
     for name in free:
         if name not in TWO_MASS_PARAMETERS:
             raise click.BadParameter(
                 f"--free names a two-mass parameter ({', '.join(TWO_MASS_PARAMETERS)}); got "
                 f"{name!r}")
+        if name not in TWO_MASS_DEFAULT_FIXED:  # issue 28: accepted, and did nothing
+            raise click.BadParameter(
+                f"--free {name}: {name} is estimated already; --free frees only a parameter "
+                f"held by default ({held}): drop --free {name}")
+        if any(item.partition("=")[0].strip() == name for item in fix):
+            raise click.BadParameter(
+                f"--free {name} and --fix {name}=... contradict each other: keep one")
     for item in fix:
         name, sep, text = item.partition("=")
         name = name.strip()
@@ -234,6 +255,8 @@ def transfer_command(file, input_col, output_col, output_quantity, time_col, fs,
         raise click.UsageError("--fix/--free are for --structure two-mass")
     if fs is not None and not (math.isfinite(fs) and fs > 0):
         raise click.BadParameter(f"--fs must be a positive sample rate [Hz]; got {fs}")
+    if input_unit is not None:
+        input_unit = _check_input_unit(input_unit)
     quantity_col = "v" if output_quantity == "speed" else "x"
     units = {k: v for k, v in (("u", input_unit), (quantity_col, output_unit)) if v}
     record = _read_signals(file, input_col=input_col, output_col=output_col,

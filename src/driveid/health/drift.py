@@ -166,6 +166,9 @@ class AxisHealth:
         ``z_level``, ``z_level_watch``, ``cusum``, ``cusum_watch`` and ``alpha``.
     n_failed : int
         Failed identifications of the axis (not tested, but reported).
+    notes : tuple of str
+        What the verdict does not cover, e.g. a drift test that did not run because the
+        axis has no more identifications than the baseline.
     """
 
     machine: str
@@ -176,6 +179,7 @@ class AxisHealth:
     verdicts: tuple[str, ...]
     thresholds: dict[str, float] = field(default_factory=dict)
     n_failed: int = 0
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-ready summary with every parameter's history."""
@@ -184,7 +188,8 @@ class AxisHealth:
         return to_jsonable({
             "machine": self.machine, "axis": self.axis, "verdict": self.verdict,
             "reasons": list(self.reasons), "thresholds": self.thresholds,
-            "n_failed": self.n_failed, "verdicts": list(self.verdicts),
+            "n_failed": self.n_failed, "notes": list(self.notes),
+            "verdicts": list(self.verdicts),
             "parameters": {n: {"unit": p.unit,
                                "times": [str(t) + "Z" for t in p.times],
                                "values": p.values, "stderr": p.stderr,
@@ -234,6 +239,7 @@ def assess_axis(entries: Sequence[Any], blueprint: Any, *, alpha: float = 0.01,
     ConfigError
         If no successful identification, entries of several axes, a monitored parameter
         missing, alpha outside its range, or baseline < 1.
+
     """
     if not (0 < alpha < 0.5 and alpha <= watch_alpha < 0.5):
         raise ConfigError(f"need 0 < alpha <= watch_alpha < 0.5; got alpha={alpha}, "
@@ -251,6 +257,14 @@ def assess_axis(entries: Sequence[Any], blueprint: Any, *, alpha: float = 0.01,
     if not ok:
         raise ConfigError(f"{machine}/{axis} has no successful identification to judge "
                           f"({n_failed} failed)")
+    notes = []
+    if len(ok) <= baseline:  # issue 28: 'healthy' with no drift test run, and no word
+        most = (f"; baseline={len(ok) - 1} (CLI: --baseline) would run it" if len(ok) > 1
+                else "")
+        notes.append(
+            f"the drift test (CUSUM) did not run: baseline={baseline} needs at least "
+            f"{baseline + 1} successful identifications and the axis has {len(ok)}, so the "
+            f"verdict rests on the level test against the blueprint alone{most}")
     names = list(blueprint.monitored)
     p = len(names)
     if horizon is None:
@@ -320,4 +334,4 @@ def assess_axis(entries: Sequence[Any], blueprint: Any, *, alpha: float = 0.01,
     return AxisHealth(machine=machine, axis=axis, verdict=_VERDICTS[int(axis_level[-1])],
                       reasons=tuple(r[2] for r in reasons), parameters=results,
                       verdicts=tuple(_VERDICTS[v] for v in axis_level),
-                      thresholds=thresholds, n_failed=n_failed)
+                      thresholds=thresholds, n_failed=n_failed, notes=tuple(notes))

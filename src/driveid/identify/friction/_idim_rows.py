@@ -106,7 +106,9 @@ def idim_regressor(
     RecordError
         If the record has no force column or is too short after dropping the edges.
     ParameterError
-        If a setting or expression is invalid.
+        If a setting or expression is invalid, or ``cutoff_hz`` so low that the filter's
+        start-up transient (``3/cutoff_hz`` at each end) leaves too few samples (the
+        message gives the lowest cut-off the record allows).
     """
     _check_settings(model, cutoff_hz, decimate, edge)
     if record.u is None:
@@ -124,6 +126,20 @@ def idim_regressor(
         raise ParameterError(
             f"cutoff_hz must be below fs/2 = {fs / 2:g} Hz; got {cutoff_hz}"
         )
+    # decimated: at least 24 rows for 4+ unknowns and their noise model (the Chebyshev
+    # filter of before needed 27 x decimate samples for its padding)
+    min_len = 24 * int(decimate) if decimate > 1 else 8
+    half = (record.n - min_len) // 2
+    if half > 0 and record.n - 2 * math.ceil(3.0 * fs / cutoff_hz) < min_len:
+        # issue 28: 1e-9 Hz 'dropped 3000000000000 edge samples'; the filter's start-up
+        # transient (3/cutoff_hz at each end) must leave min_len samples
+        lowest = _round_up(3.0 * fs / half)
+        raise ParameterError(
+            f"the cut-off cutoff_hz={cutoff_hz:g} Hz is below what this record resolves: the "
+            f"filter's start-up transient, 3/cutoff_hz = {3.0 / cutoff_hz:.3g} s at each "
+            f"end, leaves fewer than the {min_len} samples IDIM needs of "
+            f"{record.n / fs:.3g} s; give at least cutoff_hz={lowest:g} (CLI: --cutoff-hz) "
+            "[Hz], or record a longer run")
     xf, v, a = differentiate(record.x, fs, cutoff_hz=cutoff_hz)
     u = np.asarray(record.u, float)
     values = {"t": record.t, "x": xf, "v": v, "a": a, "u": u}
@@ -147,9 +163,6 @@ def idim_regressor(
     sl = slice(cut, record.n - cut)
     v, a, y, t = v[sl], a[sl], y[sl], record.t[sl]
     extra = [c[sl] for c in extra]
-    # decimated: at least 24 rows for 4+ unknowns and their noise model (the Chebyshev
-    # filter of before needed 27 x decimate samples for its padding)
-    min_len = 24 * int(decimate) if decimate > 1 else 8
     if v.size < min_len:
         raise RecordError(
             f"record too short for IDIM after dropping {cut} edge samples and decimating "
@@ -185,6 +198,12 @@ def idim_regressor(
         still = block_decimate(still.astype(float), int(decimate)) > 0
     moving = ~still & (np.abs(v_dec) > min_speed)
     return W[moving], y[moving], t[moving], v_dec[moving]
+
+
+def _round_up(value: float) -> float:
+    """``value`` rounded up to three significant digits (a bound that still holds)."""
+    step = 10.0 ** (math.floor(math.log10(value)) - 2)
+    return math.ceil(value / step - 1e-9) * step
 
 
 def _per_sample(value: Any, n: int, name: str) -> np.ndarray:

@@ -309,6 +309,9 @@ def binned_points(
         If the record has no force.
     ParameterError
         If ``inertia`` or ``bins`` is out of range.
+    IdentificationError
+        If neither direction has ``bins * min_per_bin`` moving samples (too many bins for
+        the record); the message gives the most bins it can fill.
 
     Notes
     -----
@@ -333,8 +336,10 @@ def binned_points(
     force = np.asarray(record.u, float) - inertia * a
     top = float(np.max(np.abs(v)))
     points = []
+    counts = []
     for sign in (1.0, -1.0):
         sel = np.flatnonzero(sign * v > min_fraction * top)
+        counts.append(int(sel.size))
         if sel.size < bins * min_per_bin:
             continue
         order = sel[np.argsort(np.abs(v[sel]))]
@@ -343,6 +348,15 @@ def binned_points(
             vm, vs = segment_mean(v[idx])
             fm, fse = segment_mean(force[idx])
             points.append(SteadySegment(-1, -1, vm, vs, fm, fse, int(idx.size)))
+    if not points:  # issue 28: reported as 'no steady-velocity segments found'
+        most = max(counts) // min_per_bin
+        fix = (f"give at most bins={most} (CLI: --bins)" if most >= 3 else
+               "record more motion (a longer run or more cycles)")
+        raise IdentificationError(
+            f"bins={bins} velocity bins of at least {min_per_bin} samples need "
+            f"{bins * min_per_bin} moving samples in one direction; the record has "
+            f"{counts[0]} (+) and {counts[1]} (-) above {min_fraction:g} of the top speed: "
+            f"{fix}")
     return points
 
 

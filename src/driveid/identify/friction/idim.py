@@ -221,7 +221,8 @@ def estimate_idim(
         If the drive never moves, moves in one direction only with an unknown offset, or
         the observation matrix is rank-deficient.
     ParameterError
-        If a setting or expression is invalid.
+        If a setting or expression is invalid, or ``cutoff_hz`` is too low for a record's
+        length (the filter's start-up transient would leave too few samples).
 
     Notes
     -----

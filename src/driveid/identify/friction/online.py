@@ -343,7 +343,7 @@ def track_friction(chunks: Iterable[dict[str, np.ndarray]] | Record, *, fs: floa
     RecordError
         If a chunk lacks ``u`` or the record holds no moving sample.
     ParameterError
-        On a bad argument.
+        On a bad argument, e.g. ``output_every`` shorter than ``block``.
 
     Notes
     -----
@@ -375,6 +375,11 @@ def track_friction(chunks: Iterable[dict[str, np.ndarray]] | Record, *, fs: floa
                         ("output_every", output_every)):
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             raise ParameterError(f"{name} must be a positive number [s]; got {value!r}")
+    if output_every < block:  # issue 28: 1e-9 s was taken, and outputs came once a block
+        raise ParameterError(
+            f"output_every={output_every:g} s is shorter than one update block ({block:g} s): "
+            f"the tracker outputs at most once a block; give at least output_every={block:g} "
+            "(CLI: --every), a multiple of it")
     names = PARAMETERS + (("K",) if stiffness else ())
     p = len(names)
     it = iter(chunks)
@@ -403,6 +408,11 @@ def track_friction(chunks: Iterable[dict[str, np.ndarray]] | Record, *, fs: floa
             if not (math.isfinite(T_mem) and T_mem > 0):
                 raise ParameterError(f"memory must be positive [s]; got {memory!r}")
             n_block = max(int(round(block * fs)), 1)
+            if output_every < 0.999 * n_block / fs:  # a block of one sample: 1/fs > block
+                raise ParameterError(
+                    f"output_every={output_every:g} s is shorter than the sampling interval "
+                    f"{1.0 / fs:.3g} s (fs = {fs:.4g} Hz), and the tracker outputs at most once "
+                    f"a sample; give at least output_every={n_block / fs:.3g} (CLI: --every)")
             lam_block = math.exp(-n_block / (fs * T_mem))
             per_output = max(int(round(output_every / block)), 1)
             tracker = _Tracker(p, lam_block)
