@@ -10,6 +10,10 @@ time), a folder given as FILE ("no such record file"), a service that is no Dask
 = ``--output`` and ``--fix J_m=-1`` (fitted, exit 0), ``--fs`` over a time column (the
 file's clock dropped silently), a load expression reaching 1e304 (nan estimates, exit 0), a
 catalogue locked by another process (exit 70 after 60 s) and an empty machine name.
+The block after them holds what that campaign left open: a duplicated header, ``--free k``,
+``--input-unit parsec``, NaN and 1e999 in a result, ``--bins 1e8``, ``--models ""``, a
+1e-9 Hz cut-off, a text file named .mat, a float16 clock, ``--baseline`` beyond the
+history, ``--every 1e-9``.
 The last block holds shapes that passed, kept so that they stay so.
 """
 
@@ -320,6 +324,184 @@ def test_a_channel_of_no_body(run, tmp_path):
     run("simulate", "drive", "c.toml", "--out", "a.csv").assert_ok()
     run("identify", "drive", "c.toml", "a.csv", "--estimate", "body1.J",
         "--channel", "x9=x1").assert_clean_error("name no body")
+
+
+# --- left open by the campaign, closed after ----------------------------------------------
+
+def _with_copy(good_arrays, factor):
+    """The record as CSV with its position column repeated (times ``factor``)."""
+    t, x, u = good_arrays["t"], good_arrays["x"], good_arrays["u"]
+    return "t [s],x [rad],u [N·m],x [rad]\n" + "".join(
+        f"{a:.17g},{b:.17g},{c:.17g},{b * factor:.17g}\n"
+        for a, b, c in zip(t, x, u, strict=True))
+
+
+def test_a_repeated_header(run, tmp_path, good_arrays):
+    # pandas-style renaming to x.1 read the first 'x' without a word
+    (tmp_path / "same.csv").write_text(_with_copy(good_arrays, 1.0))
+    out = run("inspect", "same.csv")
+    out.assert_ok()
+    assert "warning: same.csv: the header 'x' names 2 columns ([1] 'x', [3] 'x.1') with " \
+           "the same values; read [1] 'x' as the position" in out.stderr
+    (tmp_path / "differ.csv").write_text(_with_copy(good_arrays, 2.0))
+    run("inspect", "differ.csv").assert_clean_error(
+        "the header 'x' names 2 columns with different values")
+    run("inspect", "differ.csv", "--position", "3").assert_ok()
+
+
+@pytest.mark.parametrize("extra, match", [
+    (("--structure", "two-mass", "--free", "k"), "--free k: k is estimated already"),
+    (("--structure", "two-mass", "--free", "gain", "--fix", "gain=2"), "contradict"),
+    (("--input-unit", "parsec"), "--input-unit 'parsec' is no unit driveid knows"),
+])
+def test_transfer_options_that_did_nothing(run, extra, match):
+    from pathlib import Path
+
+    fixture = Path(__file__).resolve().parents[1] / "fixtures/transfer/ced_like.csv"
+    run(*[a.format(fixture=fixture) for a in _TR], *extra).assert_clean_error(match)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("NaN", "value must be a finite number or null"),
+    ("1e999", "value must be a finite number or null"),
+], ids=["nan", "1e999"])
+@pytest.mark.parametrize("verb", ["report", "catalog", "validate"])
+def test_non_finite_numbers_in_a_result(run, tmp_path, good_record, result_json, text, match,
+                                        verb):
+    import json
+
+    data = json.loads(result_json.read_text())
+    name = next(n for n, p in data["parameters"].items() if not p["fixed"])
+    raw = json.dumps(data).replace(f'"{name}": {{"value": ', f'"{name}": {{"value": {text}, '
+                                   '"was": ', 1)
+    (tmp_path / "r.json").write_text(raw)
+    args = {"report": ("report", "r.json", "--out", "r.html"),
+            "catalog": ("catalog", "add", "r.json", "--machine", "m", "--axis", "x",
+                        "--catalog", "c.sqlite"),
+            "validate": ("validate", "r.json", good_record)}[verb]
+    run(*args).assert_clean_error(match)
+
+
+def test_a_result_with_missing_numbers_still_reads(run, tmp_path, result_json):
+    # null (what driveid writes) and a NaN standard error are missing numbers, not errors
+    import json
+
+    from driveid.errors import FileFormatError
+    from driveid.identify.core.estimate import Estimate, Parameter
+
+    data = json.loads(result_json.read_text())
+    name = next(n for n, p in data["parameters"].items() if not p["fixed"])
+    data["parameters"][name]["value"] = None
+    (tmp_path / "r.json").write_text(json.dumps(data).replace(
+        '"stderr": null', '"stderr": NaN'))
+    run("report", "r.json", "--out", "r.html").assert_ok()
+    run("catalog", "add", "r.json", "--machine", "m", "--axis", "x",
+        "--catalog", "c.sqlite").assert_ok()
+    # the library refuses what the commands refuse, with the same classes
+    with pytest.raises(ValueError, match="value must be a finite number"):
+        Parameter.from_dict({"value": float("inf"), "stderr": None})
+    with pytest.raises(ValueError, match="standard error must be a finite number"):
+        Estimate.from_dict({**data, "parameters": {"J": {"value": 1.0,
+                                                         "stderr": float("inf")}}})
+    from driveid.catalog import Catalog
+
+    with Catalog(tmp_path / "d.sqlite") as cat, pytest.raises(FileFormatError, match="nan"):
+        cat.add_result({**data, "parameters": {"J": {"value": float("nan")}}},
+                       machine="m", axis="x")
+
+
+def test_friction_map_bins_and_models(run, idim_record):
+    run("identify", "friction-map", idim_record, "--inertia", "0.05", "--bins",
+        "100000000").assert_clean_error("give at most --bins")
+    run("identify", "friction-map", idim_record, "--models", "").assert_clean_error(
+        "--models names no map")
+    from driveid.errors import IdentificationError
+    from driveid.identify.friction.friction_map import binned_points
+    from driveid.io import read_record
+
+    with pytest.raises(IdentificationError, match=r"give at most bins=\d+"):
+        binned_points(read_record(idim_record), inertia=0.05, bins=10**8)
+
+
+def test_idim_cutoff_below_what_the_record_resolves(run, idim_record):
+    # 2.5 s at 1 kHz: 1e-9 Hz once 'dropped 3000000000000 edge samples'
+    out = run("identify", "idim", idim_record, "--cutoff-hz", "1e-9")
+    out.assert_clean_error("is below what this record resolves")
+    lowest = float(out.lines[-1].split("give at least --cutoff-hz ")[1].split()[0])
+    run("identify", "idim", idim_record, "--cutoff-hz", str(lowest * 0.99),
+        "--no-sensitivity").assert_clean_error("below what this record resolves")
+    from driveid.errors import ParameterError
+    from driveid.identify.friction.idim import estimate_idim
+    from driveid.io import read_record
+
+    with pytest.raises(ParameterError, match="cutoff_hz=1e-09 Hz is below"):
+        estimate_idim(read_record(idim_record), cutoff_hz=1e-9, sensitivity=False)
+
+
+def test_a_text_file_named_mat(run, tmp_path):
+    (tmp_path / "t.mat").write_text("this is not a mat file\n1,2,3\n")
+    out = run("inspect", "t.mat")
+    out.assert_clean_error("t.mat is text, not a MATLAB .mat file")
+    assert "IndexError" not in out.stderr
+    (tmp_path / "e.mat").write_bytes(b"")
+    run("inspect", "e.mat").assert_clean_error("e.mat is empty, not a MATLAB .mat file")
+    (tmp_path / "r.mat").write_bytes(bytes(range(256)) * 2)
+    run("inspect", "r.mat").assert_clean_error("has no MAT-file header")
+
+
+def test_a_float16_clock(run, tmp_path, good_arrays):
+    buf = io.BytesIO()
+    np.savez(buf, t=good_arrays["t"].astype(np.float16), x=good_arrays["x"])
+    (tmp_path / "h.npz").write_bytes(buf.getvalue())
+    run("inspect", "h.npz").assert_clean_error("stored as float16")
+    run("inspect", "h.npz", "--fs", "1000", "--time", "none").assert_ok()
+    buf = io.BytesIO()  # float32 resolves 6 s at 1 kHz: read as before
+    np.savez(buf, t=good_arrays["t"].astype(np.float32), x=good_arrays["x"])
+    (tmp_path / "s.npz").write_bytes(buf.getvalue())
+    run("inspect", "s.npz").assert_ok()
+
+
+def test_health_baseline_beyond_the_history_is_said():
+    from driveid.health import assess_axis, make_blueprint
+    from tests.health.test_health import _fleet
+
+    entries = _fleet(np.random.default_rng(1), n_axes=6, n_months=4)
+    bp = make_blueprint(entries, machine_type="demo")
+    axis = [e for e in entries if e.machine == "m000"]
+    short = assess_axis(axis, bp, baseline=50)
+    assert short.notes and "drift test (CUSUM) did not run: baseline=50" in short.notes[0]
+    assert "baseline=3 (CLI: --baseline) would run it" in short.notes[0]
+    assert short.to_dict()["notes"] == list(short.notes)
+    assert assess_axis(axis, bp, baseline=3).notes == ()
+
+
+def test_health_cli_notes_a_drift_test_that_did_not_run(run, tmp_path):
+    from driveid.health import make_blueprint, write_blueprint
+    from tests.health.test_health import _catalogue, _fleet
+
+    entries = _fleet(np.random.default_rng(2), n_axes=6, n_months=4)
+    _catalogue(str(tmp_path / "c.sqlite"), entries)
+    write_blueprint(make_blueprint(entries, machine_type="demo"), tmp_path / "bp.json")
+    out = run("health", "m000/x", "--blueprint", "bp.json", "--catalog", "c.sqlite",
+              "--baseline", "50")
+    assert out.code in (0, 3), out.describe()
+    assert "note: m000/x: the drift test (CUSUM) did not run: --baseline 50 needs at " \
+           "least 51" in out.stderr
+
+
+def test_track_every_below_a_block_or_a_sample(run, tmp_path, idim_record):
+    run("track", idim_record, "--every", "1e-9").assert_clean_error(
+        "--every 1e-09 s is shorter than one update block")
+    lines = idim_record.read_text().splitlines()
+    (tmp_path / "slow.csv").write_text("\n".join([lines[0], *lines[1::200]]) + "\n")
+    run("track", "slow.csv", "--every", "0.15").assert_clean_error(
+        "shorter than the sampling interval")
+    from driveid.errors import ParameterError
+    from driveid.identify.friction.online import track_friction
+    from driveid.io import read_record
+
+    with pytest.raises(ParameterError, match="output_every=1e-09 s"):
+        track_friction(read_record(idim_record), output_every=1e-9)
 
 
 # --- shapes that passed: kept so ----------------------------------------------------------
