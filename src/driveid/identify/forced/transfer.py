@@ -187,7 +187,8 @@ def estimate_transfer(record: Any, *, output: str = "v", structure: str = "tf",
     if period is not None:
         # issue 28: a bad period (0, or longer than the record) only dropped the data FRF,
         # with exit 0 and no word about it
-        span = float(t[-1] - t[0])
+        # n samples hold n sample intervals: 4000 samples at 1 kHz are two 2 s periods
+        span = float(t[-1] - t[0]) * t.size / max(t.size - 1, 1)
         if not (isinstance(period, (int, float)) and math.isfinite(period)
                 and 0 < period <= span / 2):
             raise ParameterError(
