@@ -147,7 +147,8 @@ class _Landscape:
         cost = 1.3 if c < 1.5 else 0.96
         resid = np.full((1, 100), np.sqrt(cost))
         st = {"problems": [self.prob], "index": [np.array([0, 1])],
-              "states0": [(np.zeros(1), np.zeros(1))],
+              "states0": [(np.zeros(1), np.zeros(1))], "scale_all": np.ones(2),
+              "lower": np.zeros(2), "upper": np.full(2, np.inf),
               "fit": self.ns(raw_residuals=lambda z, r=resid: [r], problems=[self.prob])}
         # s.e. 0.01 and 0.1, correlation 0.9: the principal axis (1, 1)/sqrt(2) of the
         # correlation matrix, eigenvalue 1.9; a restart moves c by 6 x 0.1 x 0.975
@@ -176,6 +177,9 @@ def test_ridge_restarts_leave_a_poor_minimum_and_spare_a_good_one():
     assert log["cost_to_noise"] == pytest.approx(1.3) and \
         log["final_cost_to_noise"] == pytest.approx(0.96)
     assert log["tried"] == len(land.calls) <= RIDGE_TRIES
+    # from 2.0 twice as far down would be c = 0.83: a restart goes at most half the way to
+    # the bound (c >= 0), so 1.0
+    assert min(land.calls) == pytest.approx(1.2 - 0.585, abs=1e-3) and 1.0 in land.calls
     # at the noise (cost 0.96 <= RIDGE_COST) no restart is tried
     good = _Landscape()
     fin, st = good.result(2.0)
