@@ -182,7 +182,7 @@ def test_health_library_refuses_what_the_options_refuse():
 
 
 def test_catalogue_locked_by_another_process(run, tmp_path, result_json, monkeypatch):
-    from driveid.catalog import store
+    from driveid.catalog import _sqlite
 
     cat = tmp_path / "c.sqlite"
     run("catalog", "add", result_json, "--machine", "m", "--axis", "x",
@@ -192,7 +192,7 @@ def test_catalogue_locked_by_another_process(run, tmp_path, result_json, monkeyp
     other = json.loads(result_json.read_text())
     other["inputs"][0]["sha256"] = "0" * 64  # another record: a new entry
     (tmp_path / "r2.json").write_text(json.dumps(other))
-    monkeypatch.setattr(store, "_SQLITE_LOCK_WAIT", 0.2)
+    monkeypatch.setattr(_sqlite, "LOCK_WAIT", 0.2)
     holder = sqlite3.connect(cat, isolation_level=None)
     holder.execute("BEGIN EXCLUSIVE")
     try:

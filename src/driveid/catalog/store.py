@@ -28,6 +28,7 @@ import sqlalchemy as sa
 
 from driveid._json import to_jsonable
 from driveid.catalog import _schema as S
+from driveid.catalog import _sqlite
 from driveid.errors import ConfigError, FileFormatError
 from driveid.identify.core.estimate import Parameter, non_finite_problem
 from driveid.io.reading import file_sha256
@@ -296,18 +297,18 @@ class Catalog:
                     f"no catalogue at {path}; check the path, or add an entry first "
                     "(driveid catalog add) to create it")
         if self.url.startswith("sqlite:///"):
-            _check_sqlite_file(Path(self.url[len("sqlite:///"):]))
+            _sqlite.check_sqlite_file(Path(self.url[len("sqlite:///"):]))
         kwargs: dict[str, Any] = {"future": True}
         if self.url.startswith("sqlite"):
             # several processes may write (fleet runs): wait for the lock, don't fail
-            kwargs["connect_args"] = {"timeout": _SQLITE_LOCK_WAIT}
+            kwargs["connect_args"] = {"timeout": _sqlite.LOCK_WAIT}
         try:
             self.engine = sa.create_engine(self.url, **kwargs)
         except (sa.exc.ArgumentError, sa.exc.NoSuchModuleError, ImportError) as exc:
             raise ConfigError(f"cannot open catalogue {catalog!r}: {exc}") from None
         if self.url.startswith("sqlite"):
-            sa.event.listen(self.engine, "connect", _sqlite_pragmas)
-            sa.event.listen(self.engine, "handle_error", _sqlite_locked)
+            sa.event.listen(self.engine, "connect", _sqlite.sqlite_pragmas)
+            sa.event.listen(self.engine, "handle_error", _sqlite.sqlite_locked)
         try:
             self.schema_version = self._migrate()
         except sa.exc.OperationalError as exc:
@@ -476,7 +477,7 @@ class Catalog:
             return outcomes
 
     def _result_row(self, result, *, machine, axis, measured_at=None, machine_type=None):
-        _check_names(machine, axis)
+        _sqlite.check_names(machine, axis)
         method, params, cov = _parse_result(result)
         inputs = [dict(i) for i in result.get("inputs") or []]
         key = entry_key([str(i.get("sha256") or "") for i in inputs], method,
@@ -491,7 +492,7 @@ class Catalog:
 
     def _failure_row(self, *, inputs, method, error, machine, axis, measured_at=None,
                      machine_type=None, command=(), driveid_version=None):
-        _check_names(machine, axis)
+        _sqlite.check_names(machine, axis)
         inputs = [dict(i) for i in inputs]
         key = entry_key([str(i.get("sha256") or "") for i in inputs], method,
                         fallback={"error": error})
@@ -754,76 +755,3 @@ def _none_to_nan(value: Any) -> float:
 def _nan_to_none(value: float) -> float | None:
     value = float(value)
     return value if math.isfinite(value) else None
-
-
-_SQLITE_HEADER = b"SQLite format 3\x00"
-
-
-def _check_sqlite_file(path: Path) -> None:
-    """Refuse an existing file that is no driveid catalogue before any driver touches it.
-
-    Opening with the engine would already change such a file: its connect hook switches
-    the journal to WAL (a persistent change) and adds ``-wal``/``-shm`` files (issue 28).
-    """
-    import sqlite3
-
-    if not path.is_file() or path.stat().st_size == 0:
-        return  # a new catalogue (SQLite makes an empty file a database)
-    fix = "name another file (--catalog NEW.sqlite) or move this one away"
-    with path.open("rb") as fh:
-        head = fh.read(len(_SQLITE_HEADER))
-    if head != _SQLITE_HEADER:
-        raise ConfigError(f"cannot open catalogue {path}: the file is not a SQLite database "
-                          f"(it lacks the SQLite header); {fix}")
-    try:
-        con = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
-        try:
-            tables = {row[0] for row in con.execute(
-                "SELECT name FROM sqlite_master WHERE type = 'table'")}
-        finally:
-            con.close()
-    except sqlite3.DatabaseError as exc:
-        raise ConfigError(f"cannot open catalogue {path}: {exc}; {fix}") from None
-    if tables and "schema_version" not in tables:
-        raise ConfigError(f"{path} holds tables of another application but no "
-                          f"schema_version table: not a driveid catalogue; {fix}")
-
-
-def _check_names(machine: Any, axis: Any) -> None:
-    """Refuse names that 'driveid health MACHINE/AXIS' could not address afterwards."""
-    # issue 28: --machine '' --axis '' was catalogued, and no MACHINE/AXIS names it
-    for what, name in (("machine", machine), ("axis", axis)):
-        if not isinstance(name, str) or not name.strip():
-            raise ConfigError(f"the {what} name must be a non-empty text (--{what}); got "
-                              f"{name!r}")
-    if "/" in axis:
-        raise ConfigError(f"the axis name must not contain '/' (health reads MACHINE/AXIS); "
-                          f"got {axis!r}")
-
-
-#: Seconds a SQLite catalogue waits for another process's write lock before giving up [s].
-_SQLITE_LOCK_WAIT = 30.0
-
-
-def _sqlite_locked(context: Any) -> None:
-    """Turn SQLite's 'database is locked' (after the wait) into one line naming the fix."""
-    import sqlite3
-
-    exc = context.original_exception
-    if isinstance(exc, sqlite3.OperationalError) and "locked" in str(exc):
-        # issue 28: a catalogue held by another process ended in exit 70 after 60 s
-        url = context.engine.url if context.engine is not None else "the catalogue"
-        raise ConfigError(
-            f"catalogue {url.database if hasattr(url, 'database') else url} stayed locked by "
-            f"another process for {_SQLITE_LOCK_WAIT:g} s ({exc}); wait for that process "
-            "(a running 'driveid fleet identify'?) to finish and run this again, or name "
-            "another catalogue (--catalog FILE)")
-
-
-def _sqlite_pragmas(dbapi_connection: Any, _record: Any) -> None:
-    cursor = dbapi_connection.cursor()
-    cursor.execute("PRAGMA foreign_keys=ON")
-    # write-ahead log: readers don't block the writer, and a commit costs no full fsync
-    cursor.execute("PRAGMA journal_mode=WAL")
-    cursor.execute("PRAGMA synchronous=NORMAL")
-    cursor.close()
