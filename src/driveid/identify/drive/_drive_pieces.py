@@ -27,12 +27,6 @@ AUTO_PIECE = 0.5  # piece length of the automatic second stage [s] (docs/drive-f
 # a whole-record residual this many times the channel's noise (second differences) means
 # the fit did not reach the noise: the automatic second stage runs (docs/drive-fit.md)
 NOISE_RATIO = 1.5
-# a whole-record residual this many times the channel's noise before the pieces: they may
-# inherit a poor minimum of it, and the fit warns. Chosen on the benchmark's two-body drive,
-# seeds 0-99 (the 8 runs that ended over 5 % off, friction 10 %, had 6.8-31; 14 others were
-# above 6); on fresh seeds 100-199 it warned 53 runs, 6 of the 10 far-off ones among them
-# (docs/drive-fit.md): a hint, not a test
-POOR_WHOLE_RECORD = 6.0
 
 
 def cut_pieces(recs, length: float) -> tuple[list[DriveRecord], list[tuple[int, int]]]:
