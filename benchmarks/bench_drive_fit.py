@@ -50,7 +50,11 @@ def _open_loop_timing() -> None:
           f"= {fit / one_sim:.0f} x one simulation ({1e3 * one_sim:.2f} ms); "
           f"{n_sims} simulations; max |error| {100 * worst:.2f} %"
           + (f"; with {info['n_pieces']} pieces of {info['length']:g} s" if info["done"]
-             else ""))
+             else "")
+          + (f"; {info['ridge_restarts']['tried']} ridge restarts (cost "
+             f"{info['ridge_restarts']['cost_to_noise']:.3f} -> "
+             f"{info['ridge_restarts']['final_cost_to_noise']:.3f} of the noise)"
+             if info.get("ridge_restarts", {}).get("tried") else ""))
 
 
 TWO_BODY_NAMES = ["body1.J", "body1.c_mean", "body1.fk_mean", "body2.J", "body2.c_mean",
