@@ -26,24 +26,11 @@ import numpy as np
 import pytest
 
 from tests.fuzz.conftest import snapshot
+from tests.test_cli_identify_drive import TOML as DRIVE_TOML
 
-_DRIVE_TOML = """
-[[body]]
-J = 0.0115355
-c_mean = 0.0007457
-fk_mean = 0.109456
-
-[feedback]
-P = 5.0
-D = 0.1
-delay = 0.01377
-
-[run]
-duration = 0.5
-fs = 1000.0
-x0 = [1.0]
-v0 = [0.0]
-"""
+# the one-body drive under delayed PD of the identify-drive tests, 0.5 s long
+_DRIVE_TOML = DRIVE_TOML.replace("duration = 2.0", "duration = 0.5")
+assert "duration = 0.5" in _DRIVE_TOML
 
 
 @pytest.fixture(scope="module")
