@@ -130,7 +130,8 @@ def idim_regressor(
     # filter of before needed 27 x decimate samples for its padding)
     min_len = 24 * int(decimate) if decimate > 1 else 8
     half = (record.n - min_len) // 2
-    if half > 0 and record.n - 2 * math.ceil(3.0 * fs / cutoff_hz) < min_len:
+    transient = math.ceil(3.0 * fs / cutoff_hz)  # the filter's start-up, each end [samples]
+    if half > 0 and record.n - 2 * transient < min_len:
         # issue 28: 1e-9 Hz 'dropped 3000000000000 edge samples'; the filter's start-up
         # transient (3/cutoff_hz at each end) must leave min_len samples
         lowest = _round_up(3.0 * fs / half)
@@ -159,7 +160,7 @@ def idim_regressor(
         y = zero_phase_lowpass(y, fs, cutoff_hz)
         extra = [zero_phase_lowpass(c, fs, cutoff_hz) for c in extra]
     # the zero-phase filter's start-up transient lasts a few 1/cutoff_hz
-    cut = max(int(edge), math.ceil(3.0 * fs / cutoff_hz))
+    cut = max(int(edge), transient)
     sl = slice(cut, record.n - cut)
     v, a, y, t = v[sl], a[sl], y[sl], record.t[sl]
     extra = [c[sl] for c in extra]
