@@ -61,13 +61,17 @@ TWO_BODY_NAMES = ["body1.J", "body1.c_mean", "body1.fk_mean", "body2.J", "body2.
                   "body2.fk_mean", "link1.gap_plus", "link1.gap_minus", "link1.k"]
 
 
-def _two_body(duration: float = 6.0):
-    """Open-loop two-body backlash drive, three sines on the motor, ``duration`` s at 1 kHz."""
+def _two_body_truth():
     from driveid.sim import BacklashLink, BodyParams, DriveParams
 
-    truth = DriveParams(bodies=(BodyParams(J=0.0115, c_mean=0.002, fk_mean=0.11),
-                                BodyParams(J=0.0035, c_mean=0.0011, fk_mean=0.03)),
-                        links=(BacklashLink(gap_plus=0.02, gap_minus=0.02, k=100.0, c=0.05),))
+    return DriveParams(bodies=(BodyParams(J=0.0115, c_mean=0.002, fk_mean=0.11),
+                               BodyParams(J=0.0035, c_mean=0.0011, fk_mean=0.03)),
+                       links=(BacklashLink(gap_plus=0.02, gap_minus=0.02, k=100.0, c=0.05),))
+
+
+def _two_body(duration: float = 6.0):
+    """Open-loop two-body backlash drive, three sines on the motor, ``duration`` s at 1 kHz."""
+    truth = _two_body_truth()
     t = np.arange(int(round(duration * 1000)) + 1) / 1000.0
     u = (0.3 * np.sin(2 * np.pi * 0.5 * t) + 0.2 * np.sin(2 * np.pi * 2.3 * t)
          + 0.1 * np.sin(2 * np.pi * 7.1 * t))
@@ -82,7 +86,37 @@ def _testbed(duration: float = 5.0):
     return truth, res, None, NAMES, (("x1", 0), ("x3", 2))
 
 
-DESIGNS = {"testbed": _testbed, "two-body": _two_body}
+def _two_body_pd(duration: float = 5.0):
+    """The two-body backlash drive under a delayed PD loop on the motor (P 5 N·m/rad, D 0.1
+    N·m·s/rad, 13.77 ms), released from 1 rad, 1 kHz; the 9 parameters and the delay."""
+    import dataclasses
+
+    from driveid.sim import PDFeedback
+
+    truth = dataclasses.replace(_two_body_truth(),
+                                feedback=PDFeedback(P=5.0, D=0.1, delay=0.01377))
+    res = simulate_drive(truth, duration=duration, fs=1000.0, x0=[1.0, 1.0])
+    return truth, res, None, TWO_BODY_NAMES + ["feedback.delay"], (("x1", 0), ("x2", 1))
+
+
+THREE_BODY_NAMES = ["body1.J", "body1.c_mean", "body1.fk_mean", "body2.J", "body3.J",
+                    "body3.fk_mean", "link1.gap_plus", "link1.gap_minus", "link2.k"]
+
+
+def _three_body(duration: float = 6.0):
+    """The test bed open loop (no feedback): motor torque three sines, x1 and x3, 1 kHz."""
+    import dataclasses
+
+    truth = dataclasses.replace(preset_testbed(), feedback=None)
+    t = np.arange(int(round(duration * 1000)) + 1) / 1000.0
+    u = (0.3 * np.sin(2 * np.pi * 0.5 * t) + 0.2 * np.sin(2 * np.pi * 2.3 * t)
+         + 0.1 * np.sin(2 * np.pi * 7.1 * t))
+    res = simulate_drive(truth, duration=duration, torque=np.vstack([u, 0 * u, 0 * u]))
+    return truth, res, u, THREE_BODY_NAMES, (("x1", 0), ("x3", 2))
+
+
+DESIGNS = {"testbed": _testbed, "two-body": _two_body, "two-body-pd": _two_body_pd,
+           "three-body": _three_body}
 
 
 def _setup(start_off: float, design: str = "testbed", duration: float | None = None):
@@ -137,7 +171,9 @@ def main() -> None:
     ap.add_argument("--skip-timing", action="store_true")
     ap.add_argument("--design", choices=sorted(DESIGNS), default="testbed",
                     help="testbed: three bodies under delayed PD (8 parameters); two-body: "
-                         "open-loop backlash drive, 6 s (9 parameters)")
+                         "open-loop backlash drive, 6 s (9 parameters); two-body-pd: the same "
+                         "under a delayed PD, 5 s (10 with the delay); three-body: the test "
+                         "bed open loop, 6 s, x1 and x3 (9)")
     ap.add_argument("--pieces", default="auto",
                     help="second stage in pieces of this length [s] (open loop); auto: as "
                          "estimate_drive decides (backlash or a poor residual); 0: never")

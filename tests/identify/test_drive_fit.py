@@ -239,3 +239,31 @@ def test_two_body_backlash_under_delayed_pd_from_35_percent_off():
     # the motor's viscous friction (0.002) acts like the loop's D = 0.1 delayed by 14 ms:
     # the two trade (observed -35 % for c_1, -1 % for the delay); not checked
     _check(est, truth, [n for n in names if n != "body1.c_mean"])
+    assert not any("times the noise" in w for w in est.warnings), est.warnings
+
+
+def test_a_closed_loop_fit_far_above_the_noise_says_so():
+    # the motor's kinetic friction held 50 % high (given, not estimated): the fit cannot
+    # reach the noise, and the AR noise model whitens what is left, so only the residual
+    # against the noise from second differences tells (benchmark two-body drive under PD:
+    # poor minima at 10-43 times the noise, white; good fits 0.99-1.02)
+    import dataclasses
+
+    from driveid.sim import PDFeedback
+
+    truth = dataclasses.replace(_two_body(), feedback=PDFeedback(P=5.0, D=0.1, delay=0.01377))
+    res = simulate_drive(truth, duration=2.0, x0=[1.0, 1.0])
+    rng = np.random.default_rng(0)
+    rec = DriveRecord(t=res.t, channels={f"x{i + 1}": res.x[i] + rng.normal(0, _NOISE,
+                                                                             res.t.size)
+                                         for i in range(2)})
+    wrong = _off(truth, ["body1.fk_mean"], 0.5)
+    est = estimate_drive(rec, wrong, estimate=["body1.J", "body2.J", "feedback.delay"])
+    ratio = est.diagnostics["pieces"]["whole_record_residual_to_noise"]
+    assert ratio > 1.5
+    assert any(f"a residual {ratio:.3g} times the noise" in w for w in est.warnings), \
+        est.warnings
+    # the same fit with the right friction reaches the noise and says nothing of the kind
+    right = estimate_drive(rec, truth, estimate=["body1.J", "body2.J", "feedback.delay"])
+    assert right.diagnostics["pieces"]["whole_record_residual_to_noise"] < 1.2
+    assert not any("times the noise" in w for w in right.warnings), right.warnings

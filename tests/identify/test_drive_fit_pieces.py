@@ -115,23 +115,31 @@ def test_pieces_option_is_checked():
 class _Landscape:
     """A made-up pieces' objective over one parameter, ``body1.c_mean``: a poor local
     minimum at 1.2 (cost 1.3 of the noise) whose basin ends at 1.5, the true one at 2.0
-    (cost 0.96). ``fit`` 'converges' to the minimum of the basin it is started in."""
+    (cost 0.96). ``fit`` 'converges' to the minimum of the basin it is started in.
+    ``outlier``: one more piece that fits 19 times the noise at either minimum (the
+    benchmark's 10 s case had such pieces on a good fit)."""
 
-    def __init__(self):
+    def __init__(self, outlier: bool = False):
         from types import SimpleNamespace
 
         self.ns = SimpleNamespace
         self.calls = []
         self.prob = SimpleNamespace(channels=["x1"], names=["body1.J", "body1.c_mean"])
-        self.cut = [SimpleNamespace(t=np.zeros(100))]
+        self.n_pieces = 4 if outlier else 1
+        self.outlier = outlier
+        self.cut = [SimpleNamespace(t=np.zeros(100))] * self.n_pieces
 
     def result(self, c):
         cost = 1.3 if c < 1.5 else 0.96
-        resid = np.full((1, 100), np.sqrt(cost))
-        st = {"problems": [self.prob], "index": [np.array([0, 1])],
-              "states0": [(np.zeros(1), np.zeros(1))], "scale_all": np.ones(2),
+        resid = [np.full((1, 100), np.sqrt(cost))] * self.n_pieces
+        if self.outlier:
+            resid = resid[:-1] + [np.full((1, 100), np.sqrt(19.0))]
+        st = {"problems": [self.prob] * self.n_pieces,
+              "index": [np.array([0, 1])] * self.n_pieces,
+              "states0": [(np.zeros(1), np.zeros(1))] * self.n_pieces, "scale_all": np.ones(2),
               "lower": np.zeros(2), "upper": np.full(2, np.inf),
-              "fit": self.ns(raw_residuals=lambda z, r=resid: [r], problems=[self.prob])}
+              "fit": self.ns(raw_residuals=lambda z, r=resid: r,
+                             problems=[self.prob] * self.n_pieces)}
         # s.e. 0.01 and 0.1, correlation 0.9: the principal axis (1, 1)/sqrt(2) of the
         # correlation matrix, eigenvalue 1.9; a restart moves c by 6 x 0.1 x 0.975
         fin = {"sol": self.ns(x=np.array([1.0, c])), "theta": np.array([1.0, c]),
@@ -167,17 +175,33 @@ def test_ridge_restarts_leave_a_poor_minimum_and_spare_a_good_one():
     fin, st = good.result(2.0)
     out, _, log = _ridge_restarts(fin, st, good.cut, whole, names, {"x1": 1.0}, [], good.fit)
     assert good.calls == [] and log["tried"] == 0 and out is fin
+    # one piece 19 times the noise whatever the parameters: the pooled ratio (5.5) would
+    # open the gate, the median piece (0.96) does not
+    spoilt = _Landscape(outlier=True)
+    fin, st = spoilt.result(2.0)
+    out, _, log = _ridge_restarts(fin, st, spoilt.cut, whole, names, {"x1": 1.0}, [],
+                                  spoilt.fit)
+    assert spoilt.calls == [] and log["tried"] == 0 and out is fin
+    assert log["pooled_to_noise"] == pytest.approx((3 * 0.96 + 19) / 4)
+    assert log["cost_to_noise"] == pytest.approx(0.96)
+    # ... and in the poor basin it still restarts and leaves it
+    fin, st = spoilt.result(1.2)
+    out, _, log = _ridge_restarts(fin, st, spoilt.cut, whole, names, {"x1": 1.0}, [],
+                                  spoilt.fit)
+    assert out["theta"][1] == 2.0 and log["taken"] == 1
 
 
 def test_ridge_restarts_run_inside_the_fit_and_are_reported(monkeypatch):
     # the wiring (the restarts' effect is the benchmark's: docs/drive-fit.md): with the
-    # gate below this record's pieces' cost (about 1 of the noise), two restarts run, the
-    # result is the lowest-cost fit, still covers the truth, and warns that the fit stalled
-    # above the gate; with the gate where it is, the same fit runs none and does not warn
+    # gate below this record's median piece cost (about 1 of the noise), two restarts run,
+    # the result is the lowest-cost fit, still covers the truth, and, with the stall limit
+    # lowered below 1 too (10 standard errors of the median under 1: 0.72 here), warns that
+    # the fit stalled; with both where they are, the same fit runs none and does not warn
     import driveid.identify.drive.drive_fit as drive_fit
 
     monkeypatch.setattr(drive_fit, "RIDGE_COST", 0.5)
     monkeypatch.setattr(drive_fit, "RIDGE_TRIES", 2)
+    monkeypatch.setattr(drive_fit, "RIDGE_WARN_Z", -10.0)
     truth = _two_body()
     start, _, _ = with_values(truth, _ZERO, _ZERO, {
         n: get_value(truth, _ZERO, _ZERO, n) * (1.2 if k % 2 else 0.8)
@@ -186,6 +210,7 @@ def test_ridge_restarts_run_inside_the_fit_and_are_reported(monkeypatch):
     ridge = est.diagnostics["pieces"]["ridge_restarts"]
     assert ridge["tried"] == 2 and ridge["final_cost_to_noise"] <= ridge["cost_to_noise"]
     assert 0.8 < ridge["cost_to_noise"] < 1.2  # the fit is at the noise already
+    assert ridge["stall_limit"] < 0.8 and 0.8 < ridge["pooled_to_noise"] < 1.5
     # still above the (lowered) gate after the restarts: the fit says it stalled
     assert any("the fit in pieces stalled" in w for w in est.warnings), est.warnings
     for name in _NAMES:
