@@ -75,8 +75,8 @@ def _pieces_line(info: dict) -> str:
     ridge = info.get("ridge_restarts") or {}
     if ridge.get("tried"):
         why += (f"; their fit stalled at {ridge['cost_to_noise']:.3g} times the noise's "
-                f"squared residual (the median piece) and was restarted {ridge['tried']} times along its "
-                f"principal axis of uncertainty ({ridge['taken']} kept, now "
+                f"squared residual (the median piece) and was restarted {ridge['tried']} "
+                f"times along its principal axis of uncertainty ({ridge['taken']} kept, now "
                 f"{ridge['final_cost_to_noise']:.3g} times)")
     return (f"fit: the whole record, then {info['n_pieces']} pieces of {info['length']:g} s "
             f"with their own initial states ({why}); values and error bars are the "
