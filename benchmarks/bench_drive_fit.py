@@ -151,7 +151,10 @@ def _one_fit(seed: int, start_off: float, noise: float, counts_per_rev: float,
         return (time.perf_counter() - t0, nan, nan, 0,
                 {"done": False, "warned": True, "failed": f"{type(exc).__name__}: {exc}"})
     seconds = time.perf_counter() - t0
-    info = dict(est.diagnostics["pieces"], warned=bool(est.warnings))
+    # the encoder note ("x1 is quantised with a step of ...") comes with every quantised
+    # record and says nothing of this fit's adequacy: not counted as a warning here
+    info = dict(est.diagnostics["pieces"], warned=any(
+        "is quantised with a step" not in w for w in est.warnings))
     return (seconds, np.array([est.value(n) for n in names]),
             np.array([est.stderr(n) for n in names]), est.diagnostics["n_simulations"],
             info)
@@ -244,7 +247,12 @@ def main() -> None:
                  f"({info['ridge_restarts']['taken']} taken, cost "
                  f"{info['ridge_restarts']['cost_to_noise']:.3f} -> "
                  f"{info['ridge_restarts']['final_cost_to_noise']:.3f} of the noise)"
-                 if info.get("ridge_restarts", {}).get("tried") else ""),
+                 if info.get("ridge_restarts", {}).get("tried") else "")
+              + (f", refitted from {info['short_horizon_retry']['segment']:g} s heads "
+                 f"(residual {info['short_horizon_retry']['residual_to_noise']:.3g} -> "
+                 f"{info['short_horizon_retry']['retried_residual_to_noise']:.3g} times the "
+                 f"noise{'' if info['short_horizon_retry']['kept'] else ', not kept'})"
+                 if info.get("short_horizon_retry") else ""),
               flush=True)
     if pool is not None:
         pool.shutdown()
