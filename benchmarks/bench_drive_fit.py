@@ -133,7 +133,7 @@ def _setup(start_off: float, design: str = "testbed", duration: float | None = N
 
 def _one_fit(seed: int, start_off: float, noise: float, counts_per_rev: float,
              design: str = "testbed", duration: float | None = None,
-             pieces: float | None = None):
+             pieces: float | None = None, segment: float = 0.5):
     """One noise realisation: (seconds, values, standard errors, simulations, pieces)."""
     _, res, start, _, names, chans, u = _setup(start_off, design, duration)
     rng = np.random.default_rng(seed)
@@ -144,7 +144,7 @@ def _one_fit(seed: int, start_off: float, noise: float, counts_per_rev: float,
     rec = DriveRecord(t=res.t, channels=data, u=u)
     t0 = time.perf_counter()
     try:
-        est = estimate_drive(rec, start, estimate=names, pieces=pieces)
+        est = estimate_drive(rec, start, estimate=names, pieces=pieces, segment=segment)
     except DriveIdError as exc:
         # one failed fit is a result of the benchmark (a miss), not the end of the run
         nan = np.full(len(names), np.nan)
@@ -180,6 +180,9 @@ def main() -> None:
     ap.add_argument("--pieces", default="auto",
                     help="second stage in pieces of this length [s] (open loop); auto: as "
                          "estimate_drive decides (backlash or a poor residual); 0: never")
+    ap.add_argument("--segment", type=float, default=0.5,
+                    help="first horizon of the whole-record fit [s] (estimate_drive's default "
+                         "0.5; the three-body design needs 0.1: docs/drive-fit.md)")
     args = ap.parse_args()
     pieces = None if args.pieces == "auto" else float(args.pieces)
     if not args.skip_timing:
@@ -195,7 +198,8 @@ def main() -> None:
     limit = np.array([0.10 if n.endswith((".c_mean", ".fk_mean")) else 0.05 for n in names])
     accepted = 0
     errors, times, ses, vals, whole = [], [], [], [], []
-    work = [(seed, args.start_off, args.noise, args.counts_per_rev, args.design, None, pieces)
+    work = [(seed, args.start_off, args.noise, args.counts_per_rev, args.design, None, pieces,
+             args.segment)
             for seed in range(args.first_seed, args.first_seed + args.runs)]
     pool = None
     if args.workers > 1:
