@@ -182,3 +182,8 @@ def test_identify_drive_says_in_words_whether_it_fitted_pieces():
     assert "3 kept, now 0.96 times" in restarted
     assert _pieces_line({"done": False, "whole_record_white": True}) == \
         "fit: the whole record"
+    again = _pieces_line({"done": False, "whole_record_white": True, "short_horizon_retry": {
+        "segment": 0.1, "residual_to_noise": 40.7, "retried_residual_to_noise": 0.98,
+        "kept": True}})
+    assert again == ("fit: the whole record (ended 40.7 times the noise, so fitted again "
+                     "from 0.1 s heads: 0.98 times, kept)")

@@ -64,8 +64,14 @@ def _piece_option(text: str) -> float | None:
 def _pieces_line(info: dict) -> str:
     """Return the fit's stages in plain words (one line under the header)."""
     if not info["done"]:
-        return "fit: the whole record" + ("" if info["whole_record_white"] else
-                                          " (its residual is not white: see the warnings)")
+        retry = info.get("short_horizon_retry")
+        again = "" if not retry else (
+            f" (ended {retry['residual_to_noise']:.3g} times the noise, so fitted again from "
+            f"{retry['segment']:g} s heads: {retry['retried_residual_to_noise']:.3g} times, "
+            + ("kept)" if retry["kept"] else "not kept)"))
+        return "fit: the whole record" + again + (
+            "" if info["whole_record_white"] else
+            " (its residual is not white: see the warnings)")
     why = ("over a whole record an open-loop drive with backlash or a poor residual is so "
            "sensitive that its error bars would be far too short")
     halved = info.get("halved_from")

@@ -365,9 +365,9 @@ def estimate_drive(
     if segment and not length and _noise_ratio(recs, fin["white"]) > NOISE_RATIO:
         # no pieces follow to mend a poor whole-record fit: once more with a first horizon
         # SHORT_HORIZON times shorter, the better kept (benchmark two-body drive under
-        # delayed PD, released from 1 rad: the 0.5 s head, which holds every impact, fitted
-        # at 30 times the noise and the whole record ended 10-43 times; from 0.1 s heads
-        # within 0.2 % but the motor's viscous friction: docs/drive-fit.md)
+        # delayed PD, released from 1 rad: in 64 of 100 runs the 0.5 s head, which holds
+        # every impact, fitted far off and the whole record ended 6.7-85 times the noise;
+        # from 0.1 s heads all 64 reached 0.98-1.02: docs/drive-fit.md)
         before = _noise_ratio(recs, fin["white"])
         retry = whole_fit(segment / SHORT_HORIZON, base)
         after = _noise_ratio(recs, retry[1]["white"])
@@ -390,8 +390,8 @@ def estimate_drive(
     fin["pieces"]["short_horizon_retry"] = short
     if not fin["pieces"]["done"] and whole_ratio > NOISE_RATIO:
         # the noise model takes a misfit for coloured noise and whitens it (benchmark
-        # two-body drive under delayed PD: 10-43 times the noise, white after the AR model,
-        # c_2 at 0 and k 100 % off; good fits 0.99-1.02: docs/drive-fit.md)
+        # two-body drive under delayed PD: 6.7-85 times the noise, white after the AR
+        # model, c_2 at 0 and k 100 % off; good fits 0.98-1.02: docs/drive-fit.md)
         warnings.append(f"the fit leaves a residual {whole_ratio:.3g} times the noise (the "
                         "worst channel's rms against its noise from second differences), "
                         "which the noise model took for coloured noise: the values sit in a "
