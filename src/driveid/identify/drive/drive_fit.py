@@ -392,12 +392,16 @@ def estimate_drive(
         # the noise model takes a misfit for coloured noise and whitens it (benchmark
         # two-body drive under delayed PD: 6.7-85 times the noise, white after the AR
         # model, c_2 at 0 and k 100 % off; good fits 0.98-1.02: docs/drive-fit.md)
+        # slow noise (AR(1) 0.9 and 0.97 on a good fit: 3.4 and 5.3 times) reads the same,
+        # which the words say
         warnings.append(f"the fit leaves a residual {whole_ratio:.3g} times the noise (the "
                         "worst channel's rms against its noise from second differences), "
-                        "which the noise model took for coloured noise: the values sit in a "
-                        "poor local minimum or the model misses an effect, and the error "
-                        "bars are not to be trusted; start nearer the truth, fit a shorter "
-                        "record, or check the drive's structure")
+                        "which the noise model took for coloured noise: either the values "
+                        "sit in a poor local minimum or the model misses an effect, and the "
+                        "error bars are not to be trusted (start nearer the truth, fit a "
+                        "shorter record, or check the drive's structure), or the sensor's "
+                        "noise is much slower than white (a low-passed or drifting "
+                        "reading), which second differences do not see")
     fin["pieces"].update(whole_record_white=all(w["white"] for w in whole_white.values()),
                          whole_record_residual_to_noise=whole_ratio)
     return _result(start, base, names, fin["all_names"], fin["theta"], fin["cov"], recs,
