@@ -61,6 +61,13 @@ TWO_BODY_NAMES = ["body1.J", "body1.c_mean", "body1.fk_mean", "body2.J", "body2.
                   "body2.fk_mean", "link1.gap_plus", "link1.gap_minus", "link1.k"]
 
 
+def _three_sines(duration: float) -> np.ndarray:
+    """The open-loop designs' motor torque at 1 kHz: sines of 0.5, 2.3 and 7.1 Hz [N·m]."""
+    t = np.arange(int(round(duration * 1000)) + 1) / 1000.0
+    return (0.3 * np.sin(2 * np.pi * 0.5 * t) + 0.2 * np.sin(2 * np.pi * 2.3 * t)
+            + 0.1 * np.sin(2 * np.pi * 7.1 * t))
+
+
 def _two_body_truth():
     from driveid.sim import BacklashLink, BodyParams, DriveParams
 
@@ -72,9 +79,7 @@ def _two_body_truth():
 def _two_body(duration: float = 6.0):
     """Open-loop two-body backlash drive, three sines on the motor, ``duration`` s at 1 kHz."""
     truth = _two_body_truth()
-    t = np.arange(int(round(duration * 1000)) + 1) / 1000.0
-    u = (0.3 * np.sin(2 * np.pi * 0.5 * t) + 0.2 * np.sin(2 * np.pi * 2.3 * t)
-         + 0.1 * np.sin(2 * np.pi * 7.1 * t))
+    u = _three_sines(duration)
     res = simulate_drive(truth, duration=duration, torque=np.vstack([u, 0 * u]))
     return truth, res, u, TWO_BODY_NAMES, (("x1", 0), ("x2", 1))
 
@@ -108,9 +113,7 @@ def _three_body(duration: float = 6.0):
     import dataclasses
 
     truth = dataclasses.replace(preset_testbed(), feedback=None)
-    t = np.arange(int(round(duration * 1000)) + 1) / 1000.0
-    u = (0.3 * np.sin(2 * np.pi * 0.5 * t) + 0.2 * np.sin(2 * np.pi * 2.3 * t)
-         + 0.1 * np.sin(2 * np.pi * 7.1 * t))
+    u = _three_sines(duration)
     res = simulate_drive(truth, duration=duration, torque=np.vstack([u, 0 * u, 0 * u]))
     return truth, res, u, THREE_BODY_NAMES, (("x1", 0), ("x3", 2))
 

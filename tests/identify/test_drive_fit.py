@@ -223,17 +223,24 @@ def test_drive_crlb_matches_the_closed_form_of_a_free_inertia():
         drive_crlb(drive, rec, ["body1.J"], noise_std=0.0)
 
 
-def test_two_body_backlash_under_delayed_pd_from_35_percent_off():
+def _pd_two_body(seed: int, duration: float, quantum: float | None = None):
+    """The two-body drive under delayed PD (P 5, D 0.1, 13.77 ms), released from 1 rad:
+    (truth, record of x1 and x2 with noise, rounded to ``quantum`` where given)."""
     import dataclasses
 
     from driveid.sim import PDFeedback
 
     truth = dataclasses.replace(_two_body(), feedback=PDFeedback(P=5.0, D=0.1, delay=0.01377))
-    res = simulate_drive(truth, duration=5.0, x0=[1.0, 1.0])
-    rng = np.random.default_rng(5)
-    rec = DriveRecord(t=res.t, channels={
-        f"x{i + 1}": np.round((res.x[i] + rng.normal(0, _NOISE, res.t.size)) / _QUANTUM)
-        * _QUANTUM for i in range(2)})
+    res = simulate_drive(truth, duration=duration, x0=[1.0, 1.0])
+    rng = np.random.default_rng(seed)
+    chans = {f"x{i + 1}": res.x[i] + rng.normal(0, _NOISE, res.t.size) for i in range(2)}
+    if quantum:
+        chans = {c: np.round(y / quantum) * quantum for c, y in chans.items()}
+    return truth, DriveRecord(t=res.t, channels=chans)
+
+
+def test_two_body_backlash_under_delayed_pd_from_35_percent_off():
+    truth, rec = _pd_two_body(5, 5.0, _QUANTUM)
     names = _OPEN_NAMES + ["feedback.delay"]
     est = estimate_drive(rec, _off(truth, names, 0.35), estimate=names)
     # the motor's viscous friction (0.002) acts like the loop's D = 0.1 delayed by 14 ms:
@@ -246,17 +253,8 @@ def test_a_closed_loop_fit_far_above_the_noise_says_so():
     # the motor's kinetic friction held 50 % high (given, not estimated): the fit cannot
     # reach the noise, and the AR noise model whitens what is left, so only the residual
     # against the noise from second differences tells (benchmark two-body drive under PD:
-    # poor minima at 10-43 times the noise, white; good fits 0.99-1.02)
-    import dataclasses
-
-    from driveid.sim import PDFeedback
-
-    truth = dataclasses.replace(_two_body(), feedback=PDFeedback(P=5.0, D=0.1, delay=0.01377))
-    res = simulate_drive(truth, duration=2.0, x0=[1.0, 1.0])
-    rng = np.random.default_rng(0)
-    rec = DriveRecord(t=res.t, channels={f"x{i + 1}": res.x[i] + rng.normal(0, _NOISE,
-                                                                             res.t.size)
-                                         for i in range(2)})
+    # poor minima at 6.7-85 times the noise, white; good fits 0.98-1.02)
+    truth, rec = _pd_two_body(0, 2.0)
     wrong = _off(truth, ["body1.fk_mean"], 0.5)
     est = estimate_drive(rec, wrong, estimate=["body1.J", "body2.J", "feedback.delay"])
     ratio = est.diagnostics["pieces"]["whole_record_residual_to_noise"]
@@ -274,16 +272,7 @@ def test_a_poor_whole_record_fit_without_pieces_is_refitted_from_shorter_heads()
     # parameters 20 % off: from 0.5 s heads (which hold every impact) the whole-record fit
     # ends 40.7 times the noise; refitted from 0.1 s heads it reaches the noise (0.98)
     # and the truth; the retry is reported (benchmark: docs/drive-fit.md)
-    import dataclasses
-
-    from driveid.sim import PDFeedback
-
-    truth = dataclasses.replace(_two_body(), feedback=PDFeedback(P=5.0, D=0.1, delay=0.01377))
-    res = simulate_drive(truth, duration=2.0, x0=[1.0, 1.0])
-    rng = np.random.default_rng(1)
-    rec = DriveRecord(t=res.t, channels={f"x{i + 1}": res.x[i] + rng.normal(0, _NOISE,
-                                                                             res.t.size)
-                                         for i in range(2)})
+    truth, rec = _pd_two_body(1, 2.0)
     names = ["body1.J", "body2.J", "feedback.delay"]
     est = estimate_drive(rec, _off(truth, names, 0.2), estimate=names)
     retry = est.diagnostics["pieces"]["short_horizon_retry"]

@@ -362,19 +362,20 @@ def estimate_drive(
     st, fin, fitted_base, own = whole_fit(segment, base)
     length = _piece_length(pieces, use_u, recs, fin["white"], start)
     short = None
-    if segment and not length and _noise_ratio(recs, fin["white"]) > NOISE_RATIO:
+    whole_ratio = _noise_ratio(recs, fin["white"])
+    if segment and not length and whole_ratio > NOISE_RATIO:
         # no pieces follow to mend a poor whole-record fit: once more with a first horizon
         # SHORT_HORIZON times shorter, the better kept (benchmark two-body drive under
         # delayed PD, released from 1 rad: in 64 of 100 runs the 0.5 s head, which holds
         # every impact, fitted far off and the whole record ended 6.7-85 times the noise;
         # from 0.1 s heads all 64 reached 0.98-1.02: docs/drive-fit.md)
-        before = _noise_ratio(recs, fin["white"])
         retry = whole_fit(segment / SHORT_HORIZON, base)
         after = _noise_ratio(recs, retry[1]["white"])
-        short = {"segment": float(segment / SHORT_HORIZON), "residual_to_noise": before,
-                 "retried_residual_to_noise": after, "kept": bool(after < before)}
-        if after < before:
+        short = {"segment": float(segment / SHORT_HORIZON), "residual_to_noise": whole_ratio,
+                 "retried_residual_to_noise": after, "kept": bool(after < whole_ratio)}
+        if after < whole_ratio:
             st, fin, fitted_base, own = retry
+            whole_ratio = after
     base = fitted_base
     warnings.extend(own)
     whole_white = fin["white"]
@@ -386,7 +387,6 @@ def estimate_drive(
         _warn_coloured(fin["white"], warnings)
     if not length:
         fin["pieces"] = {"done": False}
-    whole_ratio = _noise_ratio(recs, whole_white)
     fin["pieces"]["short_horizon_retry"] = short
     if not fin["pieces"]["done"] and whole_ratio > NOISE_RATIO:
         # the noise model takes a misfit for coloured noise and whitens it (benchmark
