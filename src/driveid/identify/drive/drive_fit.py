@@ -556,15 +556,17 @@ def _ridge_restarts(fin, st, cut, whole, names, noise, warnings, fit) -> tuple[d
                         for prob, r in zip(st["problems"], cut, strict=True)], dtype=float)
     gain = RIDGE_GAIN / float(np.median(n_piece))
 
-    def cost(f, s_):
-        return float(np.median(piece_costs(s_["fit"], f["sol"].x, noise) / n_piece))
+    def cost(f, s_, per=None):
+        per = piece_costs(s_["fit"], f["sol"].x, noise) if per is None else per
+        return float(np.median(per / n_piece))
 
     # a piece's ratio is chi2_n / n (s.d. sqrt(2/n)); the median of m of them has
     # s.d. sqrt(pi/2) times the mean's
     stall = 1.0 + RIDGE_WARN_Z * math.sqrt(math.pi / 2.0) * float(
         np.sqrt(2.0 / np.median(n_piece) / len(n_piece)))
-    best = (cost(fin, st), fin, st)
-    pooled = float(piece_costs(st["fit"], fin["sol"].x, noise).sum() / n_piece.sum())
+    first = piece_costs(st["fit"], fin["sol"].x, noise)  # each a simulation of the pieces
+    best = (cost(fin, st, first), fin, st)
+    pooled = float(first.sum() / n_piece.sum())
     log = {"cost_to_noise": best[0], "pooled_to_noise": pooled, "tried": 0, "taken": 0,
            "stall_limit": stall}
     follow = 0.0
