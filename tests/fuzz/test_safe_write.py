@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import signal
+import tempfile
 
 import numpy as np
 import pytest
@@ -25,6 +27,27 @@ def test_interrupted_write_leaves_the_old_file_and_no_temporary(tmp_path):
             fh.write("new, half")
             raise KeyboardInterrupt
     assert path.read_text() == "old" and os.listdir(tmp_path) == ["a.txt"]
+
+
+@pytest.mark.skipif(not hasattr(signal, "pthread_sigmask"), reason="POSIX signal masks")
+def test_ctrl_c_just_after_the_temporary_file_is_created_leaves_nothing(tmp_path, monkeypatch):
+    # The CI failure of 2026-11-27: SIGINT landed between mkstemp creating the file and the
+    # writer knowing its name. Sent from inside mkstemp, it must wait until the clean-up is
+    # armed; without the hold, KeyboardInterrupt is raised in the wrapper and the file stays.
+    real_mkstemp = tempfile.mkstemp
+
+    def mkstemp_then_ctrl_c(*args, **kwargs):
+        made = real_mkstemp(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):  # bytecode boundaries where an unheld signal would be raised
+            pass
+        return made
+
+    monkeypatch.setattr(tempfile, "mkstemp", mkstemp_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        with atomic_open(tmp_path / "a.csv") as fh:
+            fh.write("never reached")
+    assert os.listdir(tmp_path) == []
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".npz", ".mat"])

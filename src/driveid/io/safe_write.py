@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -126,23 +127,45 @@ def atomic_open(path: str | Path, mode: str = "w", *, overwrite: bool = False,
     path = check_destination(path, overwrite=overwrite, option=option)
     folder = path.parent
     folder.mkdir(parents=True, exist_ok=True)
-    # mkstemp opens with O_CREAT | O_EXCL (and O_NOFOLLOW where available): a planted
-    # symlink at the temporary name makes it pick another name, never write through it
-    fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.",
-                                    suffix=TEMP_SUFFIX + path.suffix)
-    tmp = Path(tmp_name)
+    tmp: Path | None = None
     try:
-        os.fchmod(fd, 0o666 & ~_umask())
+        with _interrupts_held():
+            # mkstemp opens with O_CREAT | O_EXCL (and O_NOFOLLOW where available): a planted
+            # symlink at the temporary name makes it pick another name, never write through it
+            fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.",
+                                            suffix=TEMP_SUFFIX + path.suffix)
+            tmp = Path(tmp_name)
         kwargs: dict[str, Any] = ({} if "b" in mode else
                                   {"encoding": encoding, "newline": newline})
         with os.fdopen(fd, mode, **kwargs) as fh:
+            os.fchmod(fh.fileno(), 0o666 & ~_umask())
             yield fh
             fh.flush()
         _commit(tmp, path, overwrite=overwrite, option=option)
     except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
         raise
+
+
+@contextlib.contextmanager
+def _interrupts_held() -> Iterator[None]:
+    """Hold Ctrl-C and SIGTERM while the temporary file is created and its name kept.
+
+    A signal between ``mkstemp`` creating the file and the caller knowing its name would
+    leave the file behind (seen on a loaded CI machine); held, it is delivered on leaving
+    this block, where the clean-up already knows the name. Where the platform cannot hold
+    signals (Windows) the window stays, a few microseconds wide.
+    """
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 def _commit(tmp: Path, path: Path, *, overwrite: bool, option: str) -> None:
