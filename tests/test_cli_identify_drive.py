@@ -187,3 +187,10 @@ def test_identify_drive_says_in_words_whether_it_fitted_pieces():
         "kept": True}})
     assert again == ("fit: the whole record (ended 40.7 times the noise, so fitted again "
                      "from 0.1 s heads: 0.98 times, kept)")
+    before_pieces = _pieces_line({"done": True, "length": 0.5, "n_pieces": 12,
+                                  "short_horizon_retry": {
+                                      "segment": 0.1, "residual_to_noise": 61.0,
+                                      "retried_residual_to_noise": 1.1, "kept": True}})
+    assert before_pieces.startswith("fit: the whole record (ended 61 times the noise, so "
+                                    "fitted again from 0.1 s heads: 1.1 times, kept), then "
+                                    "12 pieces of 0.5 s"), before_pieces

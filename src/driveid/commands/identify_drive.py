@@ -63,12 +63,12 @@ def _piece_option(text: str) -> float | None:
 
 def _pieces_line(info: dict) -> str:
     """Return the fit's stages in plain words (one line under the header)."""
+    retry = info.get("short_horizon_retry")
+    again = "" if not retry else (
+        f" (ended {retry['residual_to_noise']:.3g} times the noise, so fitted again from "
+        f"{retry['segment']:g} s heads: {retry['retried_residual_to_noise']:.3g} times, "
+        + ("kept)" if retry["kept"] else "not kept)"))
     if not info["done"]:
-        retry = info.get("short_horizon_retry")
-        again = "" if not retry else (
-            f" (ended {retry['residual_to_noise']:.3g} times the noise, so fitted again from "
-            f"{retry['segment']:g} s heads: {retry['retried_residual_to_noise']:.3g} times, "
-            + ("kept)" if retry["kept"] else "not kept)"))
         return "fit: the whole record" + again + (
             "" if info["whole_record_white"] else
             " (its residual is not white: see the warnings)")
@@ -84,7 +84,8 @@ def _pieces_line(info: dict) -> str:
                 f"squared residual (the median piece) and was restarted {ridge['tried']} "
                 f"times along its principal axis of uncertainty ({ridge['taken']} kept, now "
                 f"{ridge['final_cost_to_noise']:.3g} times)")
-    return (f"fit: the whole record, then {info['n_pieces']} pieces of {info['length']:g} s "
+    return (f"fit: the whole record{again}, then {info['n_pieces']} pieces of "
+            f"{info['length']:g} s "
             f"with their own initial states ({why}); values and error bars are the "
             "pieces' fit's")
 

@@ -45,6 +45,12 @@ COST_TOL = 1e-3
 #: A fresh trust region (restart) that lowers the cost by less than this ends the fit
 #: (Δχ² 0.02: within ~0.14 standard errors along the weakest direction).
 RESTART_GAIN = 1e-2
+#: Least inertia a fit may reach, as a fraction of its start value [-]. A body's inertia
+#: shrinks its contact and shaft periods, and with them the RK4 step, without bound: in
+#: the three-body open-loop benchmark (seed 6) the unmeasured middle body's J fell from
+#: 3.5e-3 to 1e-9 kg·m² in a 0.1 s head, and each 0.1 s trial simulation took 2-6 s
+#: (docs/drive-fit.md). One hundredth of a start 30-40 % off is far below any answer.
+INERTIA_FLOOR = 1e-2
 
 
 class _Converged(Exception):
@@ -285,6 +291,10 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
             b = start.bodies[int(n[4:n.index(".")]) - 1]
             held = 0.0 if f"{n}_delta" in names else 1.01 * abs(b.v_s_delta) / scale_all[j]
             lower[j] = max(lower[j], 0.01 * z0[j], held)
+    for j, n in enumerate(names):
+        if n.endswith(".J"):  # relative to the user's start, not this stage's
+            lower[j] = max(lower[j], INERTIA_FLOOR * get_value(start, zero, zero, n)
+                           / scale_all[j])
     z0 = np.clip(z0, lower + 1e-9 * np.abs(z0 + 1e-3), upper)
 
     sigma = [np.array([_channel_noise(rec.channels[c]) for c in p.channels])
