@@ -22,6 +22,7 @@ import datetime as dt
 import glob
 import inspect
 import itertools
+import math
 import os
 import re
 import time
@@ -41,6 +42,10 @@ __all__ = ["DEFAULT_PATH_PATTERN", "METHODS", "FleetSummary", "identify_many", "
 DEFAULT_PATH_PATTERN = "{machine}/{axis}/{time}"
 #: Methods a fleet run can use.
 METHODS = ("logdec", "output-error", "auto")
+#: How long a given scheduler address is tried before the run gives up [s]: Dask waits 30 s
+#: by default, which a mistyped or stopped scheduler cost every time (issue 28); a
+#: scheduler that answers at all does so within milliseconds on a LAN.
+SCHEDULER_TIMEOUT = 10.0
 _FIELDS = ("machine", "axis", "time", "type")
 
 
@@ -302,7 +307,8 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "ou
                   scheduler: str | None = None, n_workers: int = 2,
                   path_pattern: str = DEFAULT_PATH_PATTERN, machine_type: str | None = None,
                   retries: int = 2, progress: bool = True,
-                  batch_size: int | None = None) -> FleetSummary:
+                  batch_size: int | None = None,
+                  scheduler_timeout: float = SCHEDULER_TIMEOUT) -> FleetSummary:
     """Identify every record of a fleet on Dask and catalogue the results.
 
     Parameters
@@ -339,6 +345,9 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "ou
         milliseconds whatever its size, so records travel in batches. Default: batches that
         shrink as the work runs out (each about 1/(2 x workers) of the records left, at most
         32, the last ones single records), so no worker waits long for the others at the end.
+    scheduler_timeout : float
+        How long to try reaching ``scheduler`` before giving up [s] (Dask's own default is
+        30 s, which a mistyped address cost every time; issue 28).
 
     Returns
     -------
@@ -386,7 +395,7 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "ou
         workers, elapsed = 0, 0.0
         if todo:
             if client is None:
-                client = _start_client(scheduler, n_workers, owned)
+                client = _start_client(scheduler, n_workers, owned, scheduler_timeout)
             workers = len(client.scheduler_info().get("workers", {}))
             client.run(_warm_worker, method)  # import (and compile) before the clock starts
             sizes = _batch_sizes(len(todo), workers, batch_size)
@@ -405,19 +414,24 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "ou
                         n_tasks=counts["tasks"])
 
 
-def _start_client(scheduler: str | None, n_workers: int, owned: list[Any]) -> Any:
+def _start_client(scheduler: str | None, n_workers: int, owned: list[Any],
+                  timeout: float = SCHEDULER_TIMEOUT) -> Any:
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
+        if not (isinstance(timeout, (int, float)) and math.isfinite(timeout) and timeout > 0):
+            raise ConfigError(f"the scheduler timeout must be a positive number of seconds "
+                              f"(CLI --scheduler-timeout); got {timeout!r}")
         try:
-            client = Client(scheduler)
+            client = Client(scheduler, timeout=f"{float(timeout)}s")
         except (OSError, TimeoutError, ValueError, MemoryError) as exc:
             # issue 28: a service that is no Dask scheduler sent bytes read as a 3 EiB frame
             # length, and the line said "out of memory"; a dead address timed out in Dask
             raise ConfigError(
                 f"cannot use the Dask scheduler at {scheduler}: {type(exc).__name__}: "
                 f"{str(exc)[:200]}; check the address and that a Dask scheduler (not another "
-                "service) listens there, or leave --scheduler out for a local cluster"
+                "service) listens there (a slow network: a longer --scheduler-timeout), or "
+                "leave --scheduler out for a local cluster"
             ) from None
         owned.append(client)
         return client

@@ -252,6 +252,23 @@ def test_a_scheduler_address_that_is_no_scheduler(run, tmp_path, good_record):
         "--catalog", "c.sqlite").assert_clean_error("cannot use the Dask scheduler")
 
 
+def test_a_dead_scheduler_address_gives_up_after_the_timeout(run, tmp_path, good_record):
+    # issue 28: Dask tried a stopped scheduler for its own 30 s every time; now
+    # --scheduler-timeout (10 s by default), and the line names the option
+    import socket
+
+    with socket.socket() as sock:  # a port nothing listens on once closed
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    result = run("fleet", "identify", good_record, "--scheduler", f"tcp://127.0.0.1:{port}",
+                 "--scheduler-timeout", "1", "--catalog", "c.sqlite")
+    result.assert_clean_error("cannot use the Dask scheduler")
+    assert "after 1 s" in result.stderr and "--scheduler-timeout" in result.stderr
+    run("fleet", "identify", good_record, "--scheduler", f"tcp://127.0.0.1:{port}",
+        "--scheduler-timeout", "0", "--catalog", "c.sqlite").assert_clean_error(
+        "scheduler timeout must be a positive number of seconds")
+
+
 def test_a_feedback_delay_of_days(run, tmp_path):
     (tmp_path / "c.toml").write_text(_DRIVE_TOML.replace("delay = 0.01377", "delay = 1e6"))
     run("simulate", "drive", "c.toml", "--out", "o.csv").assert_clean_error(

@@ -42,6 +42,9 @@ def fleet_group():
               help="Worker processes of the local Dask cluster.")
 @click.option("--scheduler", default=None, metavar="tcp://HOST:PORT",
               help="Use an existing Dask scheduler instead of a local cluster.")
+@click.option("--scheduler-timeout", type=float, default=10.0, show_default=True,
+              metavar="SECONDS",
+              help="How long to try reaching --scheduler before giving up [s].")
 @click.option("--batch-size", type=BoundedInt(10_000, min=1), default=None,
               help="Records per Dask task (default: batches that shrink as the work runs out, "
                    "at most 32 records, the last ones single records).")
@@ -50,7 +53,8 @@ def fleet_group():
 @record_options
 @clean_errors
 def fleet_identify_command(patterns, method, mass, stiffness, path_pattern, machine_type,
-                           workers, scheduler, batch_size, quiet, catalog, record_opts):
+                           workers, scheduler, scheduler_timeout, batch_size, quiet, catalog,
+                           record_opts):
     """Identify every record matching PATTERNS ('traces/**/*.csv') into the catalogue.
 
     Dask tasks of a batch of records each, read inside the task; the catalogue is written
@@ -71,7 +75,7 @@ def fleet_identify_command(patterns, method, mass, stiffness, path_pattern, mach
                             record_options=record_opts, catalog=catalog, scheduler=scheduler,
                             n_workers=workers, path_pattern=path_pattern,
                             machine_type=machine_type, progress=not quiet,
-                            batch_size=batch_size)
+                            batch_size=batch_size, scheduler_timeout=scheduler_timeout)
     click.echo(f"{summary.n_found} records: {summary.n_ok} identified, {summary.n_failed} "
                f"failed, {summary.n_skipped} already catalogued; "
                f"{summary.records_per_second:.3g} records/s on {summary.n_workers} workers")
