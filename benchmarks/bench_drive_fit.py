@@ -185,7 +185,8 @@ def main() -> None:
                          "estimate_drive decides (backlash or a poor residual); 0: never")
     ap.add_argument("--segment", type=float, default=0.5,
                     help="first horizon of the whole-record fit [s] (estimate_drive's default "
-                         "0.5; the three-body design needs 0.1: docs/drive-fit.md)")
+                         "0.5; a fit far above the noise is retried from heads 5 times "
+                         "shorter: docs/drive-fit.md)")
     args = ap.parse_args()
     pieces = None if args.pieces == "auto" else float(args.pieces)
     if not args.skip_timing:

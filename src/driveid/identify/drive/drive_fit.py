@@ -57,7 +57,7 @@ takes a Newey–West sandwich covariance.
 
 Bounds and error bars
 ---------------------
-Physical bounds: ``J`` at least 1 % of its start value (``_drive_stage.INERTIA_FLOOR``: a
+Physical bounds: ``J`` at least 1e-4 of its start value (``_drive_stage.INERTIA_FLOOR``: a
 vanishing inertia shrinks the RK4 step without bound), ``K >= 0``, ``c_mean >= 0``,
 ``fk_mean >= 0``, ``fs_mean >= 0``, link ``k, c >= 0``, gaps ``>= 0``, ``delay >= 0``,
 ``memory >= 0``; signed asymmetries, gains and states are free. An estimate that ends on its
