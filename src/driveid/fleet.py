@@ -358,7 +358,8 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "ou
     ------
     ConfigError
         No file found, an unknown method or estimator keyword, a path that does not
-        match the pattern, or a ``batch_size`` below 1.
+        match the pattern, a ``batch_size`` below 1, or a ``scheduler_timeout`` that is not
+        a positive number of seconds.
     FileNotFoundError
         A named file (not a pattern) that does not exist.
     """
@@ -369,6 +370,12 @@ def identify_many(paths: str | Path | Sequence[str | Path], *, method: str = "ou
     if batch_size is not None and not (isinstance(batch_size, int) and batch_size >= 1):
         raise ConfigError(f"batch_size must be a whole number of records >= 1 (CLI: "
                           f"--batch-size); got {batch_size!r}")
+    if scheduler is not None and not (isinstance(scheduler_timeout, (int, float))
+                                      and math.isfinite(scheduler_timeout)
+                                      and scheduler_timeout > 0):
+        # checked before the files are hashed, not when the client starts
+        raise ConfigError(f"the scheduler timeout must be a positive number of seconds "
+                          f"(CLI --scheduler-timeout); got {scheduler_timeout!r}")
     estimator = _estimator(method)
     options = dict(method_options or {})
     try:
@@ -419,9 +426,6 @@ def _start_client(scheduler: str | None, n_workers: int, owned: list[Any],
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
-        if not (isinstance(timeout, (int, float)) and math.isfinite(timeout) and timeout > 0):
-            raise ConfigError(f"the scheduler timeout must be a positive number of seconds "
-                              f"(CLI --scheduler-timeout); got {timeout!r}")
         try:
             client = Client(scheduler, timeout=f"{float(timeout)}s")
         except (OSError, TimeoutError, ValueError, MemoryError) as exc:
