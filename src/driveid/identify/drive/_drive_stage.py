@@ -287,14 +287,14 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
                 upper[j] = b.fs_mean / scale_all[j]
     # a Stribeck velocity far below its start is below what the record resolves, and the
     # slope of its map would shrink the RK4 step without bound: keep it above 1 % of it
-    # (and above a fixed |v_s_delta|, so both branches keep a positive one)
+    # (and above a fixed |v_s_delta|, so both branches keep a positive one); an inertia
+    # likewise, above INERTIA_FLOOR of the user's start (not this stage's)
     for j, n in enumerate(names):
         if n.endswith(".v_s"):
             b = start.bodies[int(n[4:n.index(".")]) - 1]
             held = 0.0 if f"{n}_delta" in names else 1.01 * abs(b.v_s_delta) / scale_all[j]
             lower[j] = max(lower[j], 0.01 * z0[j], held)
-    for j, n in enumerate(names):
-        if n.endswith(".J"):  # relative to the user's start, not this stage's
+        elif n.endswith(".J"):
             lower[j] = max(lower[j], INERTIA_FLOOR * get_value(start, zero, zero, n)
                            / scale_all[j])
     z0 = np.clip(z0, lower + 1e-9 * np.abs(z0 + 1e-3), upper)
