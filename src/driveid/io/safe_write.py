@@ -20,6 +20,7 @@ import contextlib
 import os
 import signal
 import tempfile
+import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -154,18 +155,27 @@ def _interrupts_held() -> Iterator[None]:
     """Hold Ctrl-C and SIGTERM while the temporary file is created and its name kept.
 
     A signal between ``mkstemp`` creating the file and the caller knowing its name would
-    leave the file behind (seen on a loaded CI machine); held, it is delivered on leaving
-    this block, where the clean-up already knows the name. Where the platform cannot hold
-    signals (Windows) the window stays, a few microseconds wide.
+    leave the file behind (seen on a loaded CI machine). Here the handlers only note a
+    signal; it is raised again on leaving this block, where the clean-up already knows the
+    name. A signal mask would not do: another thread (a BLAS pool, a test runner's) takes a
+    process-directed signal, and Python runs the handler in the main thread at once.
+    Outside the main thread nothing is held: Python raises signals in the main thread only.
     """
-    if not hasattr(signal, "pthread_sigmask"):
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    noted: list[int] = []
+    before = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(signum) is not None:  # None: a handler not set from Python
+            before[signum] = signal.signal(signum, lambda s, _frame: noted.append(s))
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+        for signum, handler in before.items():
+            signal.signal(signum, handler)
+        for signum in noted[:1]:
+            signal.raise_signal(signum)  # now to the restored handler
 
 
 def _commit(tmp: Path, path: Path, *, overwrite: bool, option: str) -> None:
