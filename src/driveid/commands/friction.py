@@ -92,6 +92,10 @@ def _with_legacy(func: Any) -> Any:
               help="Force-noise model: 'ar' fits AR(p) residuals and refits by generalised "
                    "least squares (honest error bars on coloured noise); 'white' is ordinary "
                    "least squares with white-noise error bars (the EMPS recipe).")
+@click.option("--position-noise-std", type=float, default=None,
+              help="White noise sd on the position [m or rad] (an encoder's count/sqrt(12)); "
+                   "the inertia is corrected for it (errors in variables). Default: "
+                   "estimated from the position's fourth differences; 0 turns it off.")
 @click.option("--simulate", is_flag=True,
               help="Also simulate the closed loop (EMPS .mat files: reads qg, kp, kv, gtau "
                    "and pulses_N) and report position and force errors.")
@@ -100,8 +104,9 @@ def _with_legacy(func: Any) -> Any:
 @output_options
 @clean_errors
 def idim_command(files, validate_file, model, cutoff_hz, decimate, offset, load_column,
-                 load_expr, regressors, weights, min_speed, no_sensitivity, noise, simulate,
-                 force_column, force_scale, units, record_opts, output_opts):
+                 load_expr, regressors, weights, min_speed, no_sensitivity, noise,
+                 position_noise_std, simulate, force_column, force_scale, units, record_opts,
+                 output_opts):
     """Identify inertia, Coulomb and viscous friction by inverse-model least squares.
 
     Several FILES are fitted in one least-squares problem (each filtered on its own).
@@ -132,7 +137,8 @@ def idim_command(files, validate_file, model, cutoff_hz, decimate, offset, load_
         w = "auto" if weights.strip() == "auto" else _numbers(weights, "--weights")
     est = estimate_idim(records, model=model, cutoff_hz=cutoff_hz, decimate=decimate,
                         offset=offset, load=load, regressors=regressors, weights=w,
-                        min_speed=min_speed, sensitivity=not no_sensitivity, noise=noise)
+                        min_speed=min_speed, sensitivity=not no_sensitivity, noise=noise,
+                        position_noise_std=position_noise_std)
     extra: dict[str, Any] = {}
     val = None
     if validate_file is not None:
