@@ -105,6 +105,7 @@ def _bad_command_lines(tmp: Path):
         ["identify", "logdec", str(telemetry), "--position", "pos"],
         ["identify", "logdec", str(force_only)],                         # no position
         ["identify", "idim", str(clean), "--cutoff-hz", "900"],
+        ["identify", "idim", str(clean), "--position-noise-std", "-1e-6"],
         ["identify", "logdec", str(tmp / "missing.csv")],
         ["inspect", str(clean), "--unit", "q=mm"],
         ["validate", str(not_json), str(clean)],

@@ -481,8 +481,9 @@ def _position_noise(given: float | None, recs: list[Record], settings: dict[str,
         return [None] * len(recs)
     value = float(given)
     if not (math.isfinite(value) and value >= 0):
-        raise ParameterError("position_noise_std must be >= 0 [m or rad] (0 turns the "
-                             f"errors-in-variables correction off) or None; got {given}")
+        raise ParameterError("position_noise_std must be >= 0 [m or rad]: 0 turns the "
+                             "errors-in-variables correction off, leaving it out estimates "
+                             f"the noise from the record; got {given}")
     return [value] * len(recs)
 
 
