@@ -307,6 +307,54 @@ def test_an_inertia_is_held_above_its_floor():
     assert any("body1.J" in w and "bound" in w for w in est.warnings), est.warnings
 
 
+def test_a_trial_drive_above_the_step_cap_is_refused_without_a_simulation(monkeypatch):
+    # the cap on a trial's RK4 steps (TRIAL_STEP_RATIO times the start's; three-body seed 6
+    # ran 0.1 s trials of 2-6 s each below it): made tight here (1.3) on a shaft whose
+    # truth needs twice the start's steps, so that the fit meets it. A refused trial is
+    # never simulated, the trust region shrinks and the fit ends without an error
+    import driveid.identify.drive._drive_stage as stage
+    from driveid.sim import BodyParams, DriveParams, ShaftLink
+    from driveid.sim.drive import estimate_drive_cost
+
+    def drive(k: float) -> DriveParams:
+        return DriveParams(bodies=(BodyParams(J=1e-4, c_mean=1e-3, fk_mean=1e-3),
+                                   BodyParams(J=1e-4, c_mean=1e-3)),
+                           links=(ShaftLink(k=k, c=1e-3),))
+
+    truth, start = drive(400.0), drive(100.0)
+    t = np.arange(501) / 1000.0
+    u = 0.05 * np.sin(2 * np.pi * 3.0 * t)
+    res = simulate_drive(truth, duration=0.5, torque=np.vstack([u, 0 * u]))
+    rng = np.random.default_rng(1)
+    rec = DriveRecord(t=t, channels={f"x{i + 1}": res.x[i] + rng.normal(0, 1e-5, t.size)
+                                     for i in range(2)}, u=u)
+
+    def steps(params):
+        return estimate_drive_cost(params, duration=0.5, fs=1000.0).n_steps
+
+    assert steps(truth) > 1.3 * steps(start)  # the truth lies beyond the cap
+    ratio = 1.3
+    monkeypatch.setattr(stage, "TRIAL_STEP_RATIO", ratio)
+    simulated, capped = [], []
+    raw, residual = stage._Fit.raw_residuals, stage._Fit.residual
+
+    def spy_raw(self, z):
+        simulated.extend(steps(p.build(z[i])[0]) for p, i in zip(self.problems, self.index))
+        return raw(self, z)
+
+    def spy_residual(self, z):
+        out = residual(self, z)
+        capped.append(not np.all(np.isfinite(out)))
+        return out
+
+    monkeypatch.setattr(stage._Fit, "raw_residuals", spy_raw)
+    monkeypatch.setattr(stage._Fit, "residual", spy_residual)
+    est = estimate_drive(rec, start, estimate=["link1.k"], pieces=0, starts_from_record=False)
+    assert any(capped)
+    assert max(simulated) <= ratio * steps(start)
+    assert np.isfinite(est.value("link1.k"))
+
+
 def test_a_fit_far_above_the_noise_is_retried_from_shorter_heads_before_its_pieces(
         monkeypatch):
     # the retry's plumbing where pieces follow, made to run by a threshold of 0 (it runs

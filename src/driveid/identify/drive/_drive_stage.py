@@ -53,6 +53,11 @@ RESTART_GAIN = 1e-2
 #: made that fit fast but sent seed 3, whose path passes below 1e-2, 19.7 times the noise
 #: off (docs/drive-fit.md).
 INERTIA_FLOOR = 1e-4
+#: Most RK4 steps a trial drive may take, as a multiple of the user's start drive's on the
+#: same record [-]. A costlier trial is answered with a non-finite residual, which scipy's
+#: trust region rejects (it shrinks the region and tries again): the slow path of the
+#: three-body benchmark's seed 6 spent 2-6 s on each such 0.1 s trial (docs/drive-fit.md).
+TRIAL_STEP_RATIO = 50.0
 
 
 class _Converged(Exception):
@@ -140,6 +145,24 @@ class _Fit:
         self._cost_at: tuple[bytes, float] | None = None  # the last residual's z and cost
         self._jac_cost: float | None = None  # the cost where the last Jacobian was taken
         self.n_residuals = 0
+        self.step_caps: list[float] | None = None  # per record: most RK4 steps of a trial
+        self.n_capped = 0  # trials refused for their steps
+        self._size: int | None = None  # the residual's length
+
+    def _too_costly(self, z: np.ndarray) -> bool:
+        """Whether a trial drive at ``z`` takes more RK4 steps than ``step_caps`` allow."""
+        if self.step_caps is None or self._size is None:
+            return False
+        from driveid.sim.drive import estimate_drive_cost
+
+        for prob, idx, cap in zip(self.problems, self.index, self.step_caps, strict=True):
+            try:
+                params = prob.build(z[idx])[0]
+            except ParameterError:
+                return False  # outputs() says what is wrong with it
+            if estimate_drive_cost(params, duration=prob.duration, fs=prob.fs).n_steps > cap:
+                return True
+        return False
 
     def _whiten(self, r: int, c: int, values: np.ndarray) -> np.ndarray:
         if self.filters is None:
@@ -171,6 +194,9 @@ class _Fit:
         return out
 
     def residual(self, z: np.ndarray) -> np.ndarray:
+        if self._too_costly(z):
+            self.n_capped += 1
+            return np.full(self._size, np.nan)  # the trust region shrinks, no simulation
         parts = []
         for r, res in enumerate(self.raw_residuals(z)):
             for c in range(res.shape[0]):
@@ -178,6 +204,7 @@ class _Fit:
         if self.prior is not None:
             parts.append(z[:self.prior.size] - self.prior)
         out = np.concatenate(parts)
+        self._size = out.size
         self._cost_at = (z.tobytes(), 0.5 * float(out @ out))
         self.n_residuals += 1
         return out
@@ -302,6 +329,7 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
     sigma = [np.array([_channel_noise(rec.channels[c]) for c in p.channels])
              for p, rec in zip(problems, recs, strict=True)]
     fit = _Fit(problems, index, recs, sigma)
+    fit.step_caps = [TRIAL_STEP_RATIO * _steps(start, p) for p in problems]
     if hold:
         # a prior of one start value's size on each shared parameter: a parameter the
         # short horizon does not excite (a gap never closed yet) stays at its start
@@ -331,6 +359,17 @@ def _stage(recs, base, start, names, free_states, x0, v0, input_body, use_u, tor
     return {"sol": sol, "fit": fit, "problems": problems, "index": index,
             "all_names": all_names, "scale_all": scale_all, "states0": states0,
             "lower": lower, "upper": upper, "noise_info": noise_info}
+
+
+def _steps(params: DriveParams, prob: DriveProblem) -> float:
+    """RK4 steps of one simulation of ``params`` over ``prob``'s record [-].
+
+    At least one a sample: a start the closed form runs takes none.
+    """
+    from driveid.sim.drive import estimate_drive_cost
+
+    cost = estimate_drive_cost(params, duration=prob.duration, fs=prob.fs)
+    return float(max(cost.n_steps, cost.n_samples - 1))
 
 
 def _pooled_sigma(problems, raw) -> list[np.ndarray]:
