@@ -339,7 +339,8 @@ def test_a_trial_drive_above_the_step_cap_is_refused_without_a_simulation(monkey
     raw, residual = stage._Fit.raw_residuals, stage._Fit.residual
 
     def spy_raw(self, z):
-        simulated.extend(steps(p.build(z[i])[0]) for p, i in zip(self.problems, self.index))
+        simulated.extend(steps(p.build(z[i])[0]) for p, i in zip(self.problems, self.index,
+                                                                  strict=True))
         return raw(self, z)
 
     def spy_residual(self, z):

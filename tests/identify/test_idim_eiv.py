@@ -38,7 +38,8 @@ def test_the_rows_noise_covariance_is_that_of_noise_pushed_through_the_rows():
     noise = row_noise(np.zeros(64), FS, 50.0, q, sigma)
     g = _whitened(noise.kernels, q, ar)
     lagged = _lagged(g, q)
-    c0, c1 = sigma**2 * lagged[len(lagged) // 2], sigma**2 * lagged[len(lagged) // 2 + 1]
+    mid = lagged.shape[0] // 2
+    c0, c1 = sigma**2 * lagged[mid], sigma**2 * lagged[mid + 1]
     e = sigma * np.random.default_rng(7).standard_normal(600_000)
     _, v, a = differentiate(e, FS, cutoff_hz=50.0)
     rows = np.column_stack([block_decimate(a, q), block_decimate(v, q)])[100:-100]

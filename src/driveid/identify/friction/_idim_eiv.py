@@ -145,14 +145,15 @@ def row_noise(x: np.ndarray, fs: float, cutoff_hz: float, decimate: int,
     return RowNoise(s, k[:, live[0]:live[-1] + 1], int(decimate))
 
 
-def _lagged(kernels: np.ndarray, q: int) -> list[np.ndarray]:
-    """``C(ℓ) = Σ_m g[m] g[m + qℓ]ᵀ`` for ℓ = −L..L, unit noise."""
-    m = kernels.shape[1]
-    out = []
-    for ell in range(-((m - 1) // q), (m - 1) // q + 1):
-        s = q * ell
-        out.append(kernels[:, :m - s] @ kernels[:, s:].T if s >= 0
-                   else kernels[:, -s:] @ kernels[:, :m + s].T)
+def _lagged(kernels: np.ndarray, q: int) -> np.ndarray:
+    """``C(ℓ) = Σ_m g[m] g[m + qℓ]ᵀ`` for ℓ = −L..L, unit noise; shape (2L + 1, k, k)."""
+    k, m = kernels.shape
+    ell = np.arange(-((m - 1) // q), (m - 1) // q + 1)
+    out = np.empty((ell.size, k, k))
+    for i in range(k):
+        for j in range(k):
+            # correlate(g_j, g_i)[m - 1 + s] = Σ_t g_j[t + s] g_i[t]
+            out[:, i, j] = np.correlate(kernels[j], kernels[i], mode="full")[m - 1 + q * ell]
     return out
 
 
@@ -194,7 +195,7 @@ def correct(X: np.ndarray, y: np.ndarray, theta: np.ndarray, cov: np.ndarray,
     """
     p = X.shape[1]
     sigma_rows = np.zeros((p, p))
-    lagged: list[tuple[float, int, list[np.ndarray]]] = []
+    lagged: list[tuple[float, int, np.ndarray]] = []
     embed = np.zeros((p, 2))
     for j, col in enumerate(columns):
         if col is not None:
@@ -203,9 +204,9 @@ def correct(X: np.ndarray, y: np.ndarray, theta: np.ndarray, cov: np.ndarray,
         if noise.sigma <= 0 or rows == 0 or columns[0] is None:
             continue
         g = _whitened(noise.kernels, noise.decimate, ar)
-        c = [embed @ cl @ embed.T for cl in _lagged(g, noise.decimate)]
+        c = np.einsum("pi,lij,qj->lpq", embed, _lagged(g, noise.decimate), embed)
         scale = weight * noise.sigma ** 2
-        sigma_rows += rows * scale * c[len(c) // 2]
+        sigma_rows += rows * scale * c[c.shape[0] // 2]
         lagged.append((scale, rows, c))
     info: dict[str, Any] = {"applied": False, "sigma": [b[0].sigma for b in blocks]}
     if not lagged:
@@ -225,10 +226,10 @@ def correct(X: np.ndarray, y: np.ndarray, theta: np.ndarray, cov: np.ndarray,
     theta_c = inv @ (X.T @ y)
     spread = np.zeros((p, p))
     for scale, rows, c in lagged:
-        for cl in c:
-            cl = scale * cl
-            spread += rows * (cl * float(theta_c @ cl @ theta_c)
-                              + np.outer(cl @ theta_c, cl.T @ theta_c))
+        c = scale * c
+        across = np.einsum("i,lij,j->l", theta_c, c, theta_c)  # E[Δ_iᵀθ Δ_{i+ℓ}ᵀθ]
+        spread += rows * (np.einsum("l,lij->ij", across, c)
+                          + np.einsum("li,lj->ij", c @ theta_c, c.transpose(0, 2, 1) @ theta_c))
     carry = inv @ xtx
     cov_c = carry @ cov @ carry.T + inv @ spread @ inv
     se = np.sqrt(np.diag(cov))
