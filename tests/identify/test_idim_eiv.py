@@ -96,3 +96,22 @@ def test_the_inertia_is_unbiased_under_a_coarse_encoder_and_strongly_coloured_fo
     # benchmark's 200); 0.8 is a 2-record margin, the uncorrected fit misses it by 11
     assert np.mean(np.abs(z_off) < 1.96) < 0.75
     assert np.mean(np.abs(z) < 1.96) >= 0.8
+
+
+def test_position_noise_too_large_to_correct_is_said_so():
+    # a 20 µm noisy sensor at a 100 Hz cut-off: 89 % of the acceleration column's power
+    # is noise (M comes out 0.26 for 10), so the correction, a difference of near-equal
+    # numbers, is refused with a warning naming the fix
+    t = np.arange(3000) / FS
+    w = 0.8 * np.pi
+    x = 0.05 * np.sin(w * t)
+    v, a = 0.05 * w * np.cos(w * t), -0.05 * w**2 * np.sin(w * t)
+    u = 10 * a + 50 * v + 3 * np.sign(v)
+    x = x + 2e-5 * np.random.default_rng(5).standard_normal(t.size)
+    rec = Record(t=t, x=x, u=u, meta={"units": {"x": "m", "u": "N"}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        est = estimate_idim(rec, cutoff_hz=100.0, decimate=1, sensitivity=False)
+    eiv = est.diagnostics["errors_in_variables"]
+    assert not eiv["applied"] and eiv["noise_share"] >= 0.5
+    assert any("too much to correct" in w and "--cutoff-hz" in w for w in est.warnings)

@@ -113,6 +113,13 @@ def _errors_in_variables(X: np.ndarray, y: np.ndarray, ar: tuple[float, ...],
 def _note_errors_in_variables(fit: dict[str, Any], info: dict[str, Any]) -> None:
     """Hand the corrected normal equations to the bounded refit and say what was done."""
     if not info["applied"]:
+        share = info.get("noise_share")
+        if share is not None:  # found, but too large to take out
+            fit["warnings"].append(
+                f"the position's noise (sd {max(info['sigma']):.3g}) makes up "
+                f"{100 * min(share, 1.0):.0f} % of the acceleration column's power in the "
+                "fit, too much to correct: the inertia is biased towards 0; lower the "
+                "cut-off (CLI: --cutoff-hz) or decimate more")
         return
     fit["system"] = info.pop("system")
     shift = info["shift_se"][info["inertia_column"]]
