@@ -15,9 +15,12 @@ Supported estimates (dispatch on the parameters, then on ``Estimate.method``):
 * free decays with ``omega0``, ``zeta_plus``, ``zeta_minus``, ``theta_k_mean``,
   ``theta_k_delta`` (``logdec-lsq``, ``logdec-thesis-*``, ``output-error``): simulated by
   :func:`driveid.sim.simulate_free_decay` (de Marchi 1998, Eqs. 2.139-2.143, 2.156; static
-  friction taken equal to kinetic, since a free decay does not identify it). The initial
-  state is the estimate's own release for a record it was fitted to (``index=``), else
-  (held-out records) the release position and time fitted with the model parameters fixed;
+  friction taken equal to kinetic, since a free decay does not identify it); a fit whose
+  structure is ``+ quadratic damping`` with its equivalent linearisation per half cycle,
+  ``ζ_k = ζ± + q A_k`` (``zeta_quad``), as it was fitted. The initial state is the
+  estimate's own release for a record it was fitted to (``index=``), else (held-out
+  records) the release position and time fitted with the model parameters fixed, from the
+  first peak and from the velocity zero half a period before it (a mid-swing start);
 * PHO campaigns (``pho-campaign``, ``pho-output-error``): the delayed PD loop of the record's
   ``meta["P"]``, ``meta["D"]`` around the identified J, C, K and friction, released at rest
   from ``meta["x0"]`` (Eq. 2.180);
@@ -199,7 +202,7 @@ def _params(base: list[float]) -> OscillatorParams:
                             fk_mean=max(K * tkm, 0.0), fk_delta=K * tkd)
 
 
-def _fit_release(t, y, base):
+def _fit_release(t, y, base, zeta_amp=0.0):
     """Release position and time of a held-out record with the model parameters fixed."""
     from driveid.signal.peaks import find_oscillation_peaks
 
@@ -208,15 +211,22 @@ def _fit_release(t, y, base):
     x0, t0 = float(pk.x[0]), float(pk.t[0])
 
     def residual(q):
-        n, _ = kinetic_stop_count(base, q[0], q[1], float(t[-1]))
-        return response(t, base, q[0], q[1], max(n, 1), jacobian=False)[0] - y
+        n, _ = kinetic_stop_count(base, q[0], q[1], float(t[-1]), zeta_amp=zeta_amp)
+        return response(t, base, q[0], q[1], max(n, 1), jacobian=False,
+                        zeta_amp=zeta_amp)[0] - y
 
-    sol = least_squares(residual, [x0, t0], x_scale=[max(abs(x0), 1e-9), 1.0 / base[0]])
-    return float(sol.x[0]), float(sol.x[1])
+    # a record that starts mid-swing was released before its first sample: the velocity
+    # zero half a period before the first peak is tried beside the peak itself
+    sols = [least_squares(residual, start, x_scale=[max(abs(x0), 1e-9), 1.0 / base[0]])
+            for start in ([x0, t0], [-x0, t0 - math.pi / base[0]])]
+    best = min(sols, key=lambda sol: sol.cost)
+    return float(best.x[0]), float(best.x[1])
 
 
 def _simulate_free_decay(record, estimate, index):
     base = _base(estimate)
+    # the "+ quadratic damping" structure: its equivalent linearisation, as fitted
+    quad = estimate.value("zeta_quad") if "zeta_quad" in estimate.params else 0.0
     t = np.asarray(record.t, float)
     x_ref = float(estimate.data_used.get("x_ref", 0.0) or 0.0)
     releases = estimate.data_used.get("release_x")
@@ -231,17 +241,25 @@ def _simulate_free_decay(record, estimate, index):
         drift = float((estimate.data_used.get("drift") or [0.0] * len(releases))[index])
         held_out = False
     else:
-        x_r, t_r = _fit_release(t, np.asarray(record.x, float) - x_ref, base)
+        x_r, t_r = _fit_release(t, np.asarray(record.x, float) - x_ref, base, quad)
         held_out = True
-    params = _params(base)
     y_hat = np.full(t.size, x_r)
     after = t >= t_r
-    if np.any(after):
+    if np.any(after) and quad:
         local = t[after] - t_r
-        sim = simulate_free_decay(params, x0=x_r, duration=float(local[-1]) + 1e-9,
+        n_half = (estimate.data_used["n_half"][index] if not held_out
+                  and "n_half" in estimate.data_used
+                  else kinetic_stop_count(base, x_r, 0.0, float(local[-1]), zeta_amp=quad)[0])
+        y_hat[after] = response(local, base, x_r, 0.0, max(int(n_half), 1), jacobian=False,
+                                zeta_amp=quad)[0]
+    elif np.any(after):
+        local = t[after] - t_r
+        sim = simulate_free_decay(_params(base), x0=x_r, duration=float(local[-1]) + 1e-9,
                                   t=local)
         y_hat[after] = sim.record.x
-    summary = {"kind": "free-decay", **dict(zip(_FREE_DECAY, base, strict=True)),
+    extra = {"zeta_quad": quad, "structure": "+ quadratic damping (equivalent "
+             "linearisation per half cycle, as fitted)"} if quad else {}
+    summary = {"kind": "free-decay", **dict(zip(_FREE_DECAY, base, strict=True)), **extra,
                "x0": x_r + x_ref, "v0": 0.0, "t_release": t_r,
                "initial_state": "fitted release (held out)" if held_out
                else "the estimate's release"}

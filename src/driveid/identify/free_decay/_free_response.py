@@ -56,7 +56,8 @@ def first_direction(x_r: float, theta_k_delta: float) -> int:
 
 
 def kinetic_stop_count(glob, x_r: float, t_r: float, t_end: float,
-                       max_half_cycles: int = 100_000) -> tuple[int, bool]:
+                       max_half_cycles: int = 100_000, *,
+                       zeta_amp: float = 0.0) -> tuple[int, bool]:
     """Half cycles until a reversal falls inside the kinetic band, or until ``t_end``.
 
     Parameters
@@ -69,6 +70,8 @@ def kinetic_stop_count(glob, x_r: float, t_r: float, t_end: float,
         Last sample time [s].
     max_half_cycles : int
         Safety bound [-].
+    zeta_amp : float
+        Amplitude-dependent damping ``q`` [1/(m or rad)] as in :func:`response`.
 
     Returns
     -------
@@ -83,8 +86,10 @@ def kinetic_stop_count(glob, x_r: float, t_r: float, t_end: float,
     x, t, s = x_r, t_r, first_direction(x_r, tkd)
     for k in range(1, max_half_cycles + 1):
         zeta = zp if s > 0 else zm
-        wd = omega0 * math.sqrt(1.0 - zeta * zeta)
         e = -(s * tkm + tkd)
+        if zeta_amp:
+            zeta = min(max(zeta + zeta_amp * abs(x - e), 0.0), 0.999)
+        wd = omega0 * math.sqrt(1.0 - zeta * zeta)
         x = e - math.exp(-math.pi * zeta / math.sqrt(1.0 - zeta * zeta)) * (x - e)
         t += math.pi / wd
         if abs(x + tkd) <= tkm:
