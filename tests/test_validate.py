@@ -444,3 +444,26 @@ def test_a_pho_fit_with_a_static_band_is_validated_with_it():
     kinetic = dataclasses.replace(est, diagnostics={**est.diagnostics, "static_band": None})
     worst = max(compare(run, kinetic, index=k).residual_rms for k, run in enumerate(recs))
     assert worst > 10 * 1e-4  # the check can fail: without the band one run is off
+
+
+def test_coloured_noise_the_fit_modelled_is_not_called_a_model_error():
+    """AR(1) 0.9 position noise, the right model: raw residuals fail Ljung–Box (p ~ 0) but are
+    white through the fit's AR(1) ``A(q)``, so no warning (until 2026-11-28 every such record
+    was told "the model misses an effect"). A held-out record is tested raw (no rate check
+    possible), and an unmodelled effect still shows through the noise model (LuGre test)."""
+    from scipy.signal import lfilter
+
+    clean = simulate_free_decay(DEMO_PARAMS, x0=1.0, duration=20, fs=100).record
+    recs = []
+    for seed in (0, 1):
+        w = np.random.default_rng(seed).normal(size=clean.n)
+        recs.append(clean.replace(x=clean.x + 0.002 * math.sqrt(1 - 0.81)
+                                  * lfilter([1.0], [1.0, -0.9], w)))
+    est = estimate_output_error(recs[0], mass=1.0)
+    assert est.diagnostics["noise_model"]["kind"] == "AR(1)"
+    own = compare(recs[0], est, index=0)
+    assert own.whiteness["p_value"] < 1e-6  # raw: strongly coloured
+    assert own.whiteness["prewhitened"]["white"] and not own.warnings
+    held = compare(recs[1], est)
+    assert "prewhitened" not in held.whiteness and not held.whiteness["white"]
+    json.dumps(own.to_dict())  # the nested test's acf is JSON-ready

@@ -175,6 +175,8 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
             "prediction_error": prediction,
             "whiteness": {"white": all(c.whiteness["white"] for c in comparisons),
                           "p_value": min(c.whiteness["p_value"] for c in comparisons),
+                          "white_through_noise_model": all(
+                              _white_cell(c.whiteness) != "NO" for c in comparisons),
                           "test": "ljung-box", "lags": lags},
             "records": [dict(c.to_dict(), path=str(spec))
                         for spec, c in zip(files, comparisons, strict=True)],
@@ -188,10 +190,18 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
     rows = [("file", "fit %", "residual rms", "Ljung–Box p", "white", "held out")]
     for spec, c in zip(files, comparisons, strict=True):
         rows.append((str(spec), f"{c.fit:.3f}", f"{c.residual_rms:.3g}",
-                     f"{c.whiteness['p_value']:.3g}", "yes" if c.whiteness["white"] else "NO",
+                     f"{c.whiteness['p_value']:.3g}", _white_cell(c.whiteness),
                      "yes" if c.held_out else "no"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     for n, row in enumerate(rows):
         click.echo("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)))
         if n == 0:
             click.echo("  ".join("-" * w for w in widths))
+
+
+def _white_cell(white):
+    """Return the table's white cell: yes, NO, or "after AR(p)" (coloured as expected)."""
+    if white["white"]:
+        return "yes"
+    pre = white.get("prewhitened")
+    return f"after {pre['noise_model']}" if pre and pre["white"] else "NO"
