@@ -566,7 +566,7 @@ def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknow
         Over the budget: the message names the steps, the stiffest element and the fix;
         or one simulation would not fit in memory (a feedback delay of days, say).
     """
-    from driveid.sim.drive import _duration_words, check_drive_cost, estimate_drive_cost
+    from driveid.sim.drive_cost import _duration_words, check_drive_cost, estimate_drive_cost
 
     costs = [estimate_drive_cost(params, duration=float(r.t[-1] - r.t[0]), fs=r.fs)
              for r in records]
