@@ -204,7 +204,19 @@ def excess_covariance(jac_w: np.ndarray, residual_w: np.ndarray, kept: Sequence[
     if unwhitened is not None:
         jac, lengths, model = unwhitened
         q_raw, upper_raw = np.linalg.qr(np.asarray(jac, float))
-        return _through_fit(np.linalg.solve(upper_raw, q_raw.T), [int(m) for m in lengths],
+        return _through_fit(_solve_upper(upper_raw, q_raw.T), [int(m) for m in lengths],
                             s2 * amp, alpha, model.ar), info
-    m_map = np.linalg.solve(upper, q.T)  # (J_wᵀJ_w)⁻¹J_wᵀ, shape (k, n_w)
+    m_map = _solve_upper(upper, q.T)  # (J_wᵀJ_w)⁻¹J_wᵀ, shape (k, n_w)
     return _through_fit(m_map, kept, s2 * amp, alpha), info
+
+
+def _solve_upper(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Return ``R⁻¹ rhs``; by least squares where R is singular.
+
+    A singular R is an unknown the record does not determine: its share of the extra
+    variance is left out rather than raising (the fit's own checks name that unknown).
+    """
+    try:
+        return np.linalg.solve(upper, rhs)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(upper, rhs, rcond=None)[0]

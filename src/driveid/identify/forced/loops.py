@@ -176,11 +176,23 @@ def estimate_presliding_loop(record: Record, *, smooth: int = 5) -> Estimate:
     branches = loop_branches(x, smooth=smooth)
     fc0 = float(np.percentile(np.abs(u), 98))
     span = float(np.median([abs(x[b - 1] - x[a]) for a, b, _ in branches]))
-    s0 = 3.0 * fc0 / max(span, 1e-300)
+    if not (math.isfinite(fc0) and fc0 > 0.0):
+        # the Dahl fit works on log σ0 and log Fc from these starts (exit 70 before)
+        raise IdentificationError(
+            "the force is zero on 98 % of the record (its 98th percentile |u| is "
+            f"{fc0:.3g}), so there is no presliding loop to fit; give the record of the slow "
+            "cyclic test with its force or torque column (--force COLUMN)")
+    if not (math.isfinite(span) and span > 0.0):
+        raise IdentificationError(
+            "the position does not move along the loop's branches (median branch span "
+            f"{span:.3g}), so no presliding stiffness can be read; check the position column "
+            "(--position COLUMN) and its resolution")
+    s0 = 3.0 * fc0 / span
 
     def fit(rows: list[tuple[int, int, int]]) -> np.ndarray:
         def resid(th: np.ndarray) -> np.ndarray:
-            sig, fc = math.exp(th[0]), math.exp(th[1])
+            # a trial step may wander far in log space: exp of more than 700 overflows
+            sig, fc = math.exp(min(th[0], 700.0)), math.exp(min(th[1], 700.0))
             out = []
             for a, b, s in rows:
                 dx = np.abs(x[a:b] - x[a])

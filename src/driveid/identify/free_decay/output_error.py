@@ -500,6 +500,12 @@ def estimate_output_error(
             raise ParameterError(f"{name} must be a positive number; got {value!r}")
     if not (isinstance(bootstrap, int) and bootstrap >= 25):
         raise ParameterError(f"bootstrap must be an integer >= 25 replicates; got {bootstrap!r}")
+    # each record's clock from its first sample: a clock that reads 1.7e9 s (Unix time)
+    # leaves ω0·t no digits for the phase and the Jacobian vanished (exit 70); the release
+    # times are reported on the file's clock again
+    t_first = [float(r.t[0]) for r in records]
+    records = [r if t0 == 0.0 else r.replace(t=np.asarray(r.t, float) - t0)
+               for r, t0 in zip(records, t_first, strict=True)]
     n_given = sum(r.n for r in records)
     subsample = math.ceil(n_given / _MAX_FIT_SAMPLES)
     # only the kept samples are shifted by x_ref (a full copy was 8 B a sample more)
@@ -571,7 +577,7 @@ def estimate_output_error(
                                                 _combine)
         est = _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum,
                         mass, stiffness, x_ref, bootstrap, verdict, covariance_kind,
-                        start_name)
+                        start_name, t_first)
     if subsample > 1:
         est = est.with_warnings(
             f"{n_given} samples: fitted on every {subsample}th sample "
@@ -601,7 +607,7 @@ def _condition(sol):
 
 
 def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum, mass,
-              stiffness, x_ref, bootstrap, verdict, covariance_kind, start_name):
+              stiffness, x_ref, bootstrap, verdict, covariance_kind, start_name, t_first):
     u = _units(records[0])
     richer = verdict["richer"]
     noise = richer["noise"] if richer is not None else problem.noise
@@ -675,7 +681,7 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
         warnings=tuple(warnings),
         data_used={
             "release_x": [float(p[5 + per * r] + x_ref) for r in range(len(records))],
-            "release_t": [float(p[6 + per * r]) for r in range(len(records))],
+            "release_t": [float(p[6 + per * r]) + t_first[r] for r in range(len(records))],
             "drift": drifts,
             "n_half": [int(n) for n in (richer or chosen)["counts"]],
             "x_ref": float(x_ref),
