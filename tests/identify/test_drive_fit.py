@@ -354,6 +354,7 @@ def test_a_trial_drive_above_the_step_cap_is_refused_without_a_simulation(monkey
     assert any(capped)
     assert max(simulated) <= ratio * steps(start)
     assert np.isfinite(est.value("link1.k"))
+    assert est.diagnostics["n_refused_trials"] >= 1  # and the result says so
 
 
 def test_a_fit_far_above_the_noise_is_retried_from_shorter_heads_before_its_pieces(

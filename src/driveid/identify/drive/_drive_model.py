@@ -377,6 +377,7 @@ class DriveProblem:
         self.fs = record.fs
         self.duration = (n - 1) / self.fs
         self.n_sims = 0
+        self.n_refused = 0  # trial drives refused unsimulated for their RK4 steps
 
     def build(self, z: np.ndarray) -> tuple[DriveParams, np.ndarray, np.ndarray]:
         """Return the drive and initial state at scaled values ``z``."""

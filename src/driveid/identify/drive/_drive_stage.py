@@ -146,14 +146,13 @@ class _Fit:
         self._jac_cost: float | None = None  # the cost where the last Jacobian was taken
         self.n_residuals = 0
         self.step_caps: list[float] | None = None  # per record: most RK4 steps of a trial
-        self.n_capped = 0  # trials refused for their steps
         self._size: int | None = None  # the residual's length
 
     def _too_costly(self, z: np.ndarray) -> bool:
         """Whether a trial drive at ``z`` takes more RK4 steps than ``step_caps`` allow."""
         if self.step_caps is None or self._size is None:
             return False
-        from driveid.sim.drive import estimate_drive_cost
+        from driveid.sim.drive_cost import estimate_drive_cost
 
         for prob, idx, cap in zip(self.problems, self.index, self.step_caps, strict=True):
             try:
@@ -161,6 +160,7 @@ class _Fit:
             except ParameterError:
                 return False  # outputs() says what is wrong with it
             if estimate_drive_cost(params, duration=prob.duration, fs=prob.fs).n_steps > cap:
+                prob.n_refused += 1
                 return True
         return False
 
@@ -195,7 +195,6 @@ class _Fit:
 
     def residual(self, z: np.ndarray) -> np.ndarray:
         if self._too_costly(z):
-            self.n_capped += 1
             return np.full(self._size, np.nan)  # the trust region shrinks, no simulation
         parts = []
         for r, res in enumerate(self.raw_residuals(z)):

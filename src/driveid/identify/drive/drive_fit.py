@@ -266,7 +266,9 @@ def estimate_drive(
         errors; the rest ``fixed``), initial states (``body1.x0`` …, suffixed ``@r`` for
         record r > 1 of several), covariance, diagnostics (``model_toml``: the drive with
         the identified values, ``whiteness`` per channel, ``at_bound``, ``noise_model``,
-        ``n_simulations``, ``seconds``, ``pieces``: whether the second stage ran, its piece
+        ``n_simulations``, ``n_refused_trials`` (trial drives over ``TRIAL_STEP_RATIO``
+        times the start's RK4 steps, refused unsimulated), ``seconds``, ``pieces``: whether
+        the second stage ran, its piece
         length [s] and count and the whole-record fit's values and standard errors).
 
     Raises
@@ -704,6 +706,7 @@ def _result(start, base, names, all_names, theta, cov, recs, problems, states0, 
         "nfev": int(nfev),
         "pieces": pieces,
         "n_simulations": int(n_sims),
+        "n_refused_trials": int(sum(p.n_refused for p in problems)),
         "seconds": time.perf_counter() - tic,
         "model_toml": toml,
         "input_body": int(input_body) + 1 if use_u else None,
