@@ -133,7 +133,13 @@ def _check_keys(table, allowed, where: str) -> dict:
 def _number(value, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise _fail(where, f"must be a number; got {value!r}")
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:  # a TOML integer of hundreds of digits
+        raise _fail(where, f"is an integer of about {int(value.bit_length() * 0.30103) + 1} "
+                           "digits, beyond any "
+                           "float (about 1.8e308); write the value in SI units with an "
+                           "exponent, e.g. 1e3") from None
 
 
 def _values(table: dict, where: str) -> dict:
@@ -346,6 +352,24 @@ def load_drive_config(path: str | Path) -> tuple[DriveParams, RunOptions]:
     return parse_drive_config(read_toml(path, "drive config"), source=path.name)
 
 
+def _refuse_huge_integers(doc: dict, name: str, what: str) -> None:
+    """Refuse an integer no float holds (TOML integers are unbounded; float() overflowed)."""
+    stack: list[tuple[str, object]] = [("", doc)]
+    while stack:
+        key, value = stack.pop()
+        if isinstance(value, Mapping):
+            stack.extend((f"{key}.{k}" if key else str(k), v) for k, v in value.items())
+        elif isinstance(value, list):
+            # 1-based, as the config messages count bodies and links
+            stack.extend((f"{key}[{i + 1}]", v) for i, v in enumerate(value))
+        elif isinstance(value, int) and not isinstance(value, bool) \
+                and value.bit_length() > 1023:
+            raise ConfigError(
+                f"{name}: {key} is an integer of about {int(value.bit_length() * 0.30103) + 1} "
+                f"digits, beyond any float (about 1.8e308); write the {what}'s values in SI "
+                "units with an exponent, e.g. 1e3")
+
+
 def read_toml(path: str | Path, what: str) -> dict:
     """Read a TOML file, or raise one line naming the file and the fix.
 
@@ -369,7 +393,9 @@ def read_toml(path: str | Path, what: str) -> dict:
     path = Path(path)
     try:
         with open(path, "rb") as fh:
-            return tomllib.load(fh)
+            doc = tomllib.load(fh)
+        _refuse_huge_integers(doc, path.name, what)
+        return doc
     except OSError as exc:
         raise ConfigError(f"cannot read the {what} {path}: {exc.strerror}; check the "
                           f"path; got {str(path)!r}") from None

@@ -73,12 +73,19 @@ _TOP_KEYS = _AXES + ("path", "noise")
 
 
 def _positive(owner: str, name: str, value, *, zero_ok: bool = False) -> float:
-    ok = (not isinstance(value, bool) and isinstance(value, (int, float))
-          and math.isfinite(value) and (value >= 0 if zero_ok else value > 0))
+    ok = not isinstance(value, bool) and isinstance(value, (int, float))
+    try:  # a TOML integer of hundreds of digits is no float (OverflowError before)
+        number = float(value) if ok else math.nan
+    except OverflowError:
+        number = math.inf
+    ok = ok and math.isfinite(number) and (number >= 0 if zero_ok else number > 0)
     if not ok:
         bound = ">= 0" if zero_ok else "positive"
-        raise ParameterError(f"{owner}.{name} must be finite and {bound}; got {value!r}")
-    return float(value)
+        huge = isinstance(value, int) and not isinstance(value, bool) and number == math.inf
+        got = (f"an integer of about {int(value.bit_length() * 0.30103) + 1} digits" if huge
+               else repr(value))
+        raise ParameterError(f"{owner}.{name} must be finite and {bound}; got {got}")
+    return number
 
 
 @dataclass(frozen=True, kw_only=True)
