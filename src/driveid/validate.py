@@ -53,6 +53,7 @@ from driveid._validate_models import FREE_DECAY, drive_model, kind_of, simulate_
 from driveid.errors import IdentificationError
 from driveid.identify.core._noise import NoiseModel
 from driveid.identify.core.estimate import Estimate
+from driveid.identify.free_decay._free_decay_structures import second_mode
 from driveid.identify.free_decay._free_response import kinetic_stop_count, response
 from driveid.io.record import Record
 from driveid.sim import OscillatorParams, simulate_free_decay
@@ -285,11 +286,35 @@ def _simulate_free_decay(record, estimate, index):
         y_hat[after] = sim.record.x
     extra = {"zeta_quad": quad, "structure": "+ quadratic damping (equivalent "
              "linearisation per half cycle, as fitted)"} if quad else {}
+    mode = estimate.data_used.get("second_mode")
+    if mode and np.any(after):
+        y_hat, extra = _with_second_mode(t, y_hat, x_ref, t_r, mode, index, held_out,
+                                         np.asarray(record.x, float), drift, extra)
     summary = {"kind": "free-decay", **dict(zip(_FREE_DECAY, base, strict=True)), **extra,
                "x0": x_r + x_ref, "v0": 0.0, "t_release": t_r,
                "initial_state": "fitted release (held out)" if held_out
                else "the estimate's release"}
     return y_hat + x_ref + drift * (t - t[0]), held_out, summary
+
+
+def _with_second_mode(t, y_hat, x_ref, t_r, mode, index, held_out, y, drift, extra):
+    """Add a fitted second mode (``+ second mode``); a held-out record's own amplitudes.
+
+    The mode's frequency and decay are the estimate's; its amplitude and phase depend on
+    how the release excited it, so a held-out record gets them by linear least squares.
+    """
+    omega, sigma = float(mode["omega"]), float(mode["sigma"])
+    if held_out:
+        cols = np.column_stack([second_mode(t, t_r, omega, sigma, 1.0, 0.0),
+                                second_mode(t, t_r, omega, sigma, 0.0, 1.0)])
+        target = y - (y_hat + x_ref + drift * (t - t[0]))
+        a, b = np.linalg.lstsq(cols, target, rcond=None)[0]
+    else:
+        a, b = float(mode["a"][index]), float(mode["b"][index])
+    extra = {**extra, "f2": omega / (2 * math.pi), "sigma2": sigma,
+             "structure": "+ second mode" + (" (its amplitude and phase fitted to this "
+                                              "record)" if held_out else "")}
+    return y_hat + second_mode(t, t_r, omega, sigma, float(a), float(b)), extra
 
 
 def _simulate(record, estimate, index, inertia):

@@ -42,11 +42,12 @@ from driveid.identify.free_decay._free_response import SINK_ROWS, kinetic_stop_c
 
 __all__ = ["StreamWhitener", "simulate_noise", "structure_test", "fit_structure",
            "noise_model_widening", "slow_noise_widening",
-           "DRIFT", "QUADRATIC", "BASE"]
+           "DRIFT", "QUADRATIC", "MODE", "BASE"]
 
 BASE = "viscous + Coulomb"
 DRIFT = "+ drift"
 QUADRATIC = "+ quadratic damping"
+MODE = "+ second mode"
 #: Samples the structure test is decimated to [-] (the fits differentiate numerically).
 STRUCTURE_SAMPLES = 4000
 _EFFECTS = {
@@ -55,6 +56,10 @@ _EFFECTS = {
     QUADRATIC: ("damping that grows with amplitude (quadratic, aerodynamic drag): the decay "
                 "is faster at large swings than any viscous-plus-Coulomb law allows",
                 "driveid identify hilbert (damping against amplitude)"),
+    MODE: ("a second, decaying oscillation beside the mode: the system is not one rigid body "
+           "on one spring (a compliant coupling, shaft or support), or a line such as the "
+           "mains if it does not decay",
+           "driveid identify drive (the bodies and their link as one model)"),
 }
 
 
@@ -92,8 +97,13 @@ class StreamWhitener:
         return out
 
 
-def _layout(n_records: int, per: int, add_drift: bool, add_quad: bool) -> dict[str, int]:
-    """Positions of the optional unknowns after the base vector (5 + per·records)."""
+def _layout(n_records: int, per: int, add_drift: bool, add_quad: bool,
+            add_mode: bool = False) -> dict[str, int]:
+    """Positions of the optional unknowns after the base vector (5 + per·records).
+
+    A second mode takes ``ω₂`` [rad/s] and ``σ₂`` [1/s] (shared), then ``a_r, b_r`` [unit]
+    per record.
+    """
     k = 5 + per * n_records
     out = {"base": k}
     if add_drift:
@@ -102,12 +112,49 @@ def _layout(n_records: int, per: int, add_drift: bool, add_quad: bool) -> dict[s
     if add_quad:
         out["quad"] = k
         k += 1
+    if add_mode:
+        out["mode"] = k
+        k += 2 + 2 * n_records
     out["size"] = k
     return out
 
 
+def second_mode(t: np.ndarray, t_r: float, omega: float, sigma: float, a: float,
+                b: float) -> np.ndarray:
+    """``e^{-σ₂τ}(a cos ω₂τ + b sin ω₂τ)``, ``τ = t - t_r``, zero before the release [unit].
+
+    The second mode of a two-degree-of-freedom decay, released with the first (its own
+    amplitude and phase per record); ``ω₂`` is its damped frequency [rad/s].
+    """
+    tau = np.asarray(t, float) - t_r
+    after = tau >= 0.0
+    out = np.zeros(tau.size)
+    ta = tau[after]
+    out[after] = np.exp(-sigma * ta) * (a * np.cos(omega * ta) + b * np.sin(omega * ta))
+    return out
+
+
+def _second_mode_columns(t, t_r, omega, sigma, a, b):
+    """∂/∂(ω₂, σ₂, a, b, t_r) of :func:`second_mode`, shape (n, 5)."""
+    tau = np.asarray(t, float) - t_r
+    after = tau >= 0.0
+    cols = np.zeros((tau.size, 5))
+    ta = tau[after]
+    e = np.exp(-sigma * ta)
+    c, s = np.cos(omega * ta), np.sin(omega * ta)
+    term = e * (a * c + b * s)
+    slope = e * (b * c - a * s)  # ∂/∂(ωτ) of the bracket, times e
+    cols[after, 0] = ta * slope
+    cols[after, 1] = -ta * term
+    cols[after, 2] = e * c
+    cols[after, 3] = e * s
+    cols[after, 4] = sigma * term - omega * slope  # -d/dτ
+    return cols
+
+
 def structure_model(times: Sequence[np.ndarray], theta: np.ndarray, counts: Sequence[int],
-                    per: int, add_drift: bool, add_quad: bool) -> np.ndarray:
+                    per: int, add_drift: bool, add_quad: bool,
+                    add_mode: bool = False) -> np.ndarray:
     """Stacked free response of a structure (base vector + drift slopes + ``q``).
 
     Parameters
@@ -117,12 +164,13 @@ def structure_model(times: Sequence[np.ndarray], theta: np.ndarray, counts: Sequ
     theta : ndarray, shape (k,)
         Base unknowns (``GLOBAL_NAMES``, then ``x_r, t_r`` [, slope] per record), then
         one drift slope per record [unit/s] (``add_drift``), then ``q`` [1/unit]
-        (``add_quad``).
+        (``add_quad``), then ``ω₂, σ₂`` and ``a_r, b_r`` per record (``add_mode``, see
+        :func:`second_mode`).
     counts : sequence of int
         Half cycles per record before the body sticks [-].
     per : int
         Base unknowns per record (2, or 3 with the base's own drift) [-].
-    add_drift, add_quad : bool
+    add_drift, add_quad, add_mode : bool
         Which richer terms ``theta`` carries.
 
     Returns
@@ -130,7 +178,7 @@ def structure_model(times: Sequence[np.ndarray], theta: np.ndarray, counts: Sequ
     ndarray, shape (sum n_r,)
         Position [m or rad].
     """
-    lay = _layout(len(times), per, add_drift, add_quad)
+    lay = _layout(len(times), per, add_drift, add_quad, add_mode)
     q = float(theta[lay["quad"]]) if add_quad else 0.0
     parts = []
     for r, (t, n_half) in enumerate(zip(times, counts, strict=True)):
@@ -142,6 +190,10 @@ def structure_model(times: Sequence[np.ndarray], theta: np.ndarray, counts: Sequ
             slope = slope + theta[lay["drift"] + r]
         if slope:
             x = x + slope * (t - t[0])
+        if add_mode:
+            m = lay["mode"]
+            x = x + second_mode(t, theta[k + 1], theta[m], theta[m + 1],
+                                theta[m + 2 + 2 * r], theta[m + 3 + 2 * r])
         parts.append(x)
     return np.concatenate(parts)
 
@@ -156,7 +208,7 @@ def _bounds(size: int, per: int, n_records: int, passive: bool):
 
 
 def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, segments, *,
-                  passive=True, max_nfev=60):
+                  passive=True, max_nfev=60, add_mode=False):
     """Fit one structure by least squares on prewhitened residuals (numerical Jacobian).
 
     Parameters
@@ -181,6 +233,8 @@ def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, seg
         Bound ζ± >= 0.
     max_nfev : int
         Most function evaluations [-].
+    add_mode : bool
+        A second mode (:func:`second_mode`; ``ω₂ > 0``, ``σ₂ >= 0``).
 
     Returns
     -------
@@ -195,14 +249,17 @@ def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, seg
     central differences.
     """
     lower, upper = _bounds(theta0.size, per, len(times), passive)
+    lay = _layout(len(times), per, add_drift, add_quad, add_mode)
     if add_quad:
-        lower[-1] = 0.0  # drag only takes energy out
+        lower[lay["quad"]] = 0.0  # drag only takes energy out
+    if add_mode:  # a second mode oscillates and decays (or holds: a line)
+        lower[lay["mode"]], lower[lay["mode"] + 1] = 1e-9, 0.0
     theta0 = np.clip(theta0, lower, upper)
     y_w = noise.whiten(y, segments)
 
     def resid(theta):
         with np.errstate(over="ignore", invalid="ignore"):
-            f = structure_model(times, theta, counts, per, add_drift, add_quad)
+            f = structure_model(times, theta, counts, per, add_drift, add_quad, add_mode)
         r = y_w - noise.whiten(f, segments)
         return np.where(np.isfinite(r), r, 1e6)
 
@@ -211,12 +268,12 @@ def fit_structure(times, y, theta0, counts, per, add_drift, add_quad, noise, seg
         # filter carry the round-off of f amplified by its gain (10⁴-10⁵ in a deep low-pass
         # stopband), which made the error bars 3-10x short; where q = 0 the columns are the
         # analytic ones (central differences of f still carry ~1e-8 of round-off)
-        cols = _structure_jacobian(times, theta, counts, per, add_drift, add_quad)
+        cols = _structure_jacobian(times, theta, counts, per, add_drift, add_quad, add_mode)
         return -noise.whiten(np.where(np.isfinite(cols), cols, 0.0), segments)
 
     sol = least_squares(resid, theta0, jac=jac, bounds=(lower, upper), x_scale="jac",
                         max_nfev=max_nfev * theta0.size, method="trf")
-    raw = y - structure_model(times, sol.x, counts, per, add_drift, add_quad)
+    raw = y - structure_model(times, sol.x, counts, per, add_drift, add_quad, add_mode)
     return {"theta": sol.x, "residual": raw, "white_residual": sol.fun,
             "jac": -jac(sol.x), "rss": float(sol.fun @ sol.fun), "lower": lower,
             "upper": upper}
@@ -264,15 +321,21 @@ def structure_test(times: Sequence[np.ndarray], y: np.ndarray, p: np.ndarray,
     y_d = np.concatenate([y[s:s + m:step] for s, m in zip(starts, lengths, strict=True)])
     seg_d = [t.size for t in t_d]
     n_records = len(times)
-    options = [(BASE, False, False), (DRIFT, True, False), (QUADRATIC, False, True)]
+    options = [(BASE, False, False, False), (DRIFT, True, False, False),
+               (QUADRATIC, False, True, False)]
     if per == 3:  # the base already has a drift
         options = [options[0], options[2]]
+    mode_starts = _second_mode_starts(t_d, y_d, p, counts, per)
+    if mode_starts:  # the residuals oscillate away from the mode: try a second one
+        options.append((MODE, False, False, True))
     white = NoiseModel((), 1.0, 1.0, 0, (), "white")
     fits, sizes = {}, {}
-    for name, add_drift, add_quad in options:
-        lay = _layout(n_records, per, add_drift, add_quad)
+    for name, add_drift, add_quad, add_mode in options:
+        lay = _layout(n_records, per, add_drift, add_quad, add_mode)
         theta0 = np.concatenate([p, np.zeros(lay["size"] - p.size)])
         starts = [theta0]
+        if add_mode:
+            starts = [np.concatenate([p, extra]) for extra in mode_starts]
         if add_quad:
             # half the damping from the drag at the typical amplitude, with and without the
             # base's Coulomb friction (which a drag-damped decay pushes the base towards)
@@ -285,18 +348,19 @@ def structure_test(times: Sequence[np.ndarray], y: np.ndarray, p: np.ndarray,
             starts = [theta0, bare]
         # each structure gets its own noise model: a misfit must not hide in the AR model
         fit = min((fit_structure(t_d, y_d, th, counts, per, add_drift, add_quad, white, seg_d,
-                                 passive=passive) for th in starts), key=lambda f: f["rss"])
+                                 passive=passive, add_mode=add_mode) for th in starts),
+                  key=lambda f: f["rss"])
         noise = fit_noise_model(fit["residual"], segments=seg_d, n_params=lay["size"])
         if not noise.is_white:
             fit = fit_structure(t_d, y_d, fit["theta"], counts, per, add_drift, add_quad,
-                                noise, seg_d, passive=passive)
+                                noise, seg_d, passive=passive, add_mode=add_mode)
         fit["noise"] = noise
         fits[name] = fit
         sizes[name] = lay["size"]
     # the same prewhitened samples for every structure: drop the largest order's head
     top = max(f["noise"].order for f in fits.values())
     candidates = []
-    for name, _, _ in options:
+    for name, *_ in options:
         fit = fits[name]
         kept = _trim(fit["white_residual"], seg_d, fit["noise"].order, top)
         effect, command = _EFFECTS.get(name, ("", ""))
@@ -323,8 +387,53 @@ def structure_test(times: Sequence[np.ndarray], y: np.ndarray, p: np.ndarray,
             f"{candidates[0].bic - best.bic:.1f} with each structure's own AR noise model "
             f"(orders {fits[BASE]['noise'].order} and {fits[best.name]['noise'].order}); "
             f"{best.effect}")
+    if best.name == MODE:  # name the oscillation found
+        m = _layout(n_records, per, False, False, True)["mode"]
+        omega, sigma = (float(v) for v in fits[MODE]["theta"][m:m + 2])
+        zeta = sigma / math.hypot(omega, sigma)
+        shortest = min(float(t[-1] - t[0]) for t in times)
+        comparison["reason"] += (f"; the second oscillation: {omega / (2 * math.pi):.4g} Hz, "
+                                 f"damping ratio {zeta:.3g}")
+        if sigma * shortest < 1.0:  # less than one e-fold over the record
+            comparison["reason"] += (" - it hardly decays over the record, as a line (the "
+                                     "mains, a rotating part) does, not a mode the release "
+                                     "excited")
     return {"comparison": comparison, "fits": fits, "step": step, "counts": counts,
-            "options": {name: (d, q) for name, d, q in options}}
+            "options": {name: tuple(flags) for name, *flags in options}}
+
+
+def _second_mode_starts(times, y, p, counts, per) -> list[np.ndarray]:
+    """Start values ``ω₂, σ₂, a_r, b_r`` of a second mode, or none.
+
+    Tried only where the base fit's residual has its largest spectral peak above the mode
+    (more than 1.2 ω, below 0.45 of the sample rate, five periods in the shortest record):
+    a free decay's fitted mode is its fundamental, and slow wander (1/f-like noise, drift)
+    must not pass for a mode below it (on the issue-24 1/f-like records a window down to
+    0.05 ω chose one in 14 of 40). Amplitudes by linear least squares at two decay rates
+    (damping ratios 0.01 and 0.1).
+    """
+    from driveid.signal.envelope import dominant_frequency
+
+    raw = y - structure_model(times, p, counts, per, False, False)
+    fs = 1.0 / float(np.median(np.diff(times[0])))
+    omega_d = float(p[0]) * math.sqrt(max(1.0 - float(np.mean(p[1:3])) ** 2, 1e-6))
+    w2 = dominant_frequency(raw, fs) if raw.size > 16 else 0.0
+    shortest = min(float(t[-1] - t[0]) for t in times)
+    if not (1.2 * omega_d < w2 < 0.45 * 2 * math.pi * fs
+            and w2 * shortest >= 5 * 2 * math.pi):
+        return []
+    out = []
+    for zeta in (0.01, 0.1):
+        sigma = zeta * w2
+        amps, start = [], 0
+        for r, t in enumerate(times):
+            part = raw[start:start + t.size]
+            start += t.size
+            cols = _second_mode_columns(t, float(p[5 + per * r + 1]), w2, sigma, 1.0, 0.0)
+            ab = np.linalg.lstsq(cols[:, 2:4], part, rcond=None)[0]
+            amps += [float(ab[0]), float(ab[1])]
+        out.append(np.array([w2, sigma] + amps))
+    return out
 
 
 def _common_noise_gain(fits, name, sizes, t_d, y_d, counts, per, seg_d, options, passive):
@@ -343,9 +452,9 @@ def _common_noise_gain(fits, name, sizes, t_d, y_d, counts, per, seg_d, options,
     return gain - (sizes[name] - sizes[BASE]) * math.log(max(n, 2))
 
 
-def _structure_jacobian(times, theta, counts, per, add_drift, add_quad):
+def _structure_jacobian(times, theta, counts, per, add_drift, add_quad, add_mode=False):
     """Jacobian of :func:`structure_model`: analytic at ``q = 0``, else central differences."""
-    lay = _layout(len(times), per, add_drift, add_quad)
+    lay = _layout(len(times), per, add_drift, add_quad, add_mode)
     n = sum(t.size for t in times)
     cols = np.zeros((n, theta.size))
     q = float(theta[lay["quad"]]) if add_quad else 0.0
@@ -361,6 +470,14 @@ def _structure_jacobian(times, theta, counts, per, add_drift, add_quad):
                 cols[rows, k + 2] = t - t[0]
             if add_drift:
                 cols[rows, lay["drift"] + r] = t - t[0]
+            if add_mode:
+                m = lay["mode"]
+                a_at = m + 2 + 2 * r
+                mc = _second_mode_columns(t, theta[k + 1], theta[m], theta[m + 1],
+                                          theta[a_at], theta[a_at + 1])
+                cols[rows, m:m + 2] = mc[:, :2]
+                cols[rows, a_at:a_at + 2] = mc[:, 2:4]
+                cols[rows, k + 1] += mc[:, 4]  # the release time moves the mode too
             row += t.size
         numeric = [lay["quad"]] if add_quad else []
     else:
@@ -373,9 +490,9 @@ def _structure_jacobian(times, theta, counts, per, add_drift, add_quad):
         if i == lay.get("quad") and down[i] < 0.0:  # drag >= 0: one-sided at the bound
             down[i], h = theta[i], 0.5 * h
         with np.errstate(over="ignore", invalid="ignore"):
-            cols[:, i] = (structure_model(times, up, counts, per, add_drift, add_quad)
-                          - structure_model(times, down, counts, per, add_drift, add_quad)) \
-                / (2.0 * h)
+            cols[:, i] = (structure_model(times, up, counts, per, add_drift, add_quad, add_mode)
+                          - structure_model(times, down, counts, per, add_drift, add_quad,
+                                            add_mode)) / (2.0 * h)
     return cols
 
 
@@ -662,17 +779,18 @@ def assess(problem, chosen, p, *, run_structures: bool | None = None) -> dict:
     name = test["comparison"]["chosen"]
     if name == BASE:
         return out
-    add_drift, add_quad = test["options"][name]
+    add_drift, add_quad, add_mode = test["options"][name]
     theta = test["fits"][name]["theta"]
     counts = test["counts"]
     if problem.n <= 100_000:  # refit on every sample, the noise model re-estimated
         segs = problem.segments
         for _ in range(2):
             raw_s = y - structure_model(problem.t, theta, counts, problem.per, add_drift,
-                                        add_quad)
+                                        add_quad, add_mode)
             nm = fit_noise_model(raw_s, segments=segs, n_params=theta.size)
             fit = fit_structure(problem.t, y, theta, counts, problem.per, add_drift,
-                                add_quad, nm, segs, passive=problem.passive)
+                                add_quad, nm, segs, passive=problem.passive,
+                                add_mode=add_mode)
             theta = fit["theta"]
         fit["noise"] = nm
         fit["step"] = 1
@@ -681,7 +799,7 @@ def assess(problem, chosen, p, *, run_structures: bool | None = None) -> dict:
         fit["step"] = test["step"]
     fit["name"] = name
     fit["counts"] = counts
-    fit["layout"] = _layout(len(problem.t), problem.per, add_drift, add_quad)
+    fit["layout"] = _layout(len(problem.t), problem.per, add_drift, add_quad, add_mode)
     fit["whiteness"] = ljung_box(fit["white_residual"], fitted=fit["noise"].order)
     out["richer"] = fit
     return out

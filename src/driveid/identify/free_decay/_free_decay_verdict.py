@@ -124,7 +124,7 @@ def structure_fitted(problem, richer):
     """
     lay = richer["layout"]
     return structure_model(problem.t, richer["theta"], richer["counts"], problem.per,
-                           "drift" in lay, "quad" in lay)
+                           "drift" in lay, "quad" in lay, "mode" in lay)
 
 
 def physics_warnings(params, at_bound, x_ref, u, zeta_bound):

@@ -587,6 +587,19 @@ def estimate_output_error(
     return est
 
 
+def _second_mode_parameters(p, cov, at):
+    """``f2`` [Hz] and ``zeta2`` [-] of a fitted second mode (damped ``ω₂``, rate ``σ₂``)."""
+    omega, sigma = float(p[at]), float(p[at + 1])
+    norm = math.hypot(omega, sigma)
+    # delta method: f2 = ω₂/2π, ζ₂ = σ₂/√(ω₂² + σ₂²)
+    grads = {"f2": np.array([1.0 / (2 * math.pi), 0.0]),
+             "zeta2": np.array([-sigma * omega, omega * omega]) / norm**3}
+    block = cov[at:at + 2, at:at + 2]
+    values = {"f2": omega / (2 * math.pi), "zeta2": sigma / norm}
+    return {name: Parameter(values[name], float(math.sqrt(max(g @ block @ g, 0.0))),
+                            "Hz" if name == "f2" else "-") for name, g in grads.items()}
+
+
 def _ls_covariance(sol, s2):
     # JᵀJ of the full Jacobian when it was kept (as before), else the blockwise sum
     jtj = sol.jac.T @ sol.jac if sol.jac is not None else sol.jtj
@@ -624,6 +637,9 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
     quad = richer["layout"].get("quad") if richer is not None else None
     if quad is not None:
         params["zeta_quad"] = Parameter(float(p[quad]), float(se[quad]), f"1/{u['x']}")
+    mode = richer["layout"].get("mode") if richer is not None else None
+    if mode is not None:
+        params.update(_second_mode_parameters(p, cov, mode))
     if mass is not None or stiffness is not None:
         phys = physical_parameters(p[:5], mass, stiffness)
         free = [n for n in ("J", "K") if not ((n == "J" and mass is not None)
@@ -685,6 +701,11 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
             "drift": drifts,
             "n_half": [int(n) for n in (richer or chosen)["counts"]],
             "x_ref": float(x_ref),
+            **({"second_mode": {
+                "omega": float(p[mode]), "sigma": float(p[mode + 1]),
+                "a": [float(p[mode + 2 + 2 * r]) for r in range(len(records))],
+                "b": [float(p[mode + 3 + 2 * r]) for r in range(len(records))]}}
+               if mode is not None else {}),
             "fit_x": fitted + x_ref,
             "residual": residual,
         },
