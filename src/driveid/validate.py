@@ -53,8 +53,11 @@ from driveid._validate_models import FREE_DECAY, drive_model, kind_of, simulate_
 from driveid.errors import IdentificationError
 from driveid.identify.core._noise import NoiseModel
 from driveid.identify.core.estimate import Estimate
-from driveid.identify.free_decay._free_decay_structures import second_mode
-from driveid.identify.free_decay._free_response import kinetic_stop_count, response
+from driveid.identify.free_decay._free_response import (
+    kinetic_stop_count,
+    response,
+    second_mode,
+)
 from driveid.io.record import Record
 from driveid.sim import OscillatorParams, simulate_free_decay
 

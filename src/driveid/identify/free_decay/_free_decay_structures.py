@@ -38,7 +38,13 @@ from driveid.identify.core._noise_replicates import (
     student_widening,
 )
 from driveid.identify.core._slow_noise import slow_noise_covariance
-from driveid.identify.free_decay._free_response import SINK_ROWS, kinetic_stop_count, response
+from driveid.identify.free_decay._free_response import (
+    SINK_ROWS,
+    _second_mode_columns,
+    kinetic_stop_count,
+    response,
+    second_mode,
+)
 
 __all__ = ["StreamWhitener", "simulate_noise", "structure_test", "fit_structure",
            "noise_model_widening", "slow_noise_widening",
@@ -117,39 +123,6 @@ def _layout(n_records: int, per: int, add_drift: bool, add_quad: bool,
         k += 2 + 2 * n_records
     out["size"] = k
     return out
-
-
-def second_mode(t: np.ndarray, t_r: float, omega: float, sigma: float, a: float,
-                b: float) -> np.ndarray:
-    """``e^{-σ₂τ}(a cos ω₂τ + b sin ω₂τ)``, ``τ = t - t_r``, zero before the release [unit].
-
-    The second mode of a two-degree-of-freedom decay, released with the first (its own
-    amplitude and phase per record); ``ω₂`` is its damped frequency [rad/s].
-    """
-    tau = np.asarray(t, float) - t_r
-    after = tau >= 0.0
-    out = np.zeros(tau.size)
-    ta = tau[after]
-    out[after] = np.exp(-sigma * ta) * (a * np.cos(omega * ta) + b * np.sin(omega * ta))
-    return out
-
-
-def _second_mode_columns(t, t_r, omega, sigma, a, b):
-    """∂/∂(ω₂, σ₂, a, b, t_r) of :func:`second_mode`, shape (n, 5)."""
-    tau = np.asarray(t, float) - t_r
-    after = tau >= 0.0
-    cols = np.zeros((tau.size, 5))
-    ta = tau[after]
-    e = np.exp(-sigma * ta)
-    c, s = np.cos(omega * ta), np.sin(omega * ta)
-    term = e * (a * c + b * s)
-    slope = e * (b * c - a * s)  # ∂/∂(ωτ) of the bracket, times e
-    cols[after, 0] = ta * slope
-    cols[after, 1] = -ta * term
-    cols[after, 2] = e * c
-    cols[after, 3] = e * s
-    cols[after, 4] = sigma * term - omega * slope  # -d/dτ
-    return cols
 
 
 def structure_model(times: Sequence[np.ndarray], theta: np.ndarray, counts: Sequence[int],

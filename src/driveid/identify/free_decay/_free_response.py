@@ -23,6 +23,10 @@ one-to-one reparametrisation of the position and velocity at the first sample.
 
 Derivatives are propagated forward through the recursion (``dX``, ``dT`` carry
 ``∂x_{k-1}/∂q`` and ``∂T_{k-1}/∂q``), so the Jacobian is exact to round-off.
+
+:func:`second_mode` is the term the ``+ second mode`` structure adds
+(:mod:`driveid.identify.free_decay._free_decay_structures`): a damped oscillation released
+with the first, ``e^{-σ₂τ}(a cos ω₂τ + b sin ω₂τ)``, with its derivatives.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import math
 
 import numpy as np
 
-__all__ = ["GLOBAL_NAMES", "first_direction", "kinetic_stop_count", "response"]
+__all__ = ["GLOBAL_NAMES", "first_direction", "kinetic_stop_count", "response", "second_mode"]
 
 #: Order of the shared unknowns; each record adds ``x_r``, ``t_r`` (and a drift slope).
 GLOBAL_NAMES = ("omega0", "zeta_plus", "zeta_minus", "theta_k_mean", "theta_k_delta")
@@ -227,3 +231,54 @@ def response(t: np.ndarray, glob, x_r: float, t_r: float, n_half: int, *,
         elif jacobian:
             jac[i0:] = dX
     return x, jac, np.array(reversals)
+
+
+def second_mode(t: np.ndarray, t_r: float, omega: float, sigma: float, a: float,
+                b: float) -> np.ndarray:
+    """Return ``e^{-σ₂τ}(a cos ω₂τ + b sin ω₂τ)``, ``τ = t - t_r``, zero before the release.
+
+    The second mode of a two-degree-of-freedom decay, released with the first (its own
+    amplitude and phase per record).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times [s].
+    t_r : float
+        Release time [s].
+    omega : float
+        Damped frequency ω₂ [rad/s].
+    sigma : float
+        Decay rate σ₂ [1/s]; the damping ratio is ``σ₂/√(ω₂² + σ₂²)``.
+    a, b : float
+        Cosine and sine amplitudes at the release [m or rad].
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        The mode's displacement [m or rad].
+    """
+    tau = np.asarray(t, float) - t_r
+    after = tau >= 0.0
+    out = np.zeros(tau.size)
+    ta = tau[after]
+    out[after] = np.exp(-sigma * ta) * (a * np.cos(omega * ta) + b * np.sin(omega * ta))
+    return out
+
+
+def _second_mode_columns(t, t_r, omega, sigma, a, b):
+    """∂/∂(ω₂, σ₂, a, b, t_r) of :func:`second_mode`, shape (n, 5)."""
+    tau = np.asarray(t, float) - t_r
+    after = tau >= 0.0
+    cols = np.zeros((tau.size, 5))
+    ta = tau[after]
+    e = np.exp(-sigma * ta)
+    c, s = np.cos(omega * ta), np.sin(omega * ta)
+    term = e * (a * c + b * s)
+    slope = e * (b * c - a * s)  # ∂/∂(ωτ) of the bracket, times e
+    cols[after, 0] = ta * slope
+    cols[after, 1] = -ta * term
+    cols[after, 2] = e * c
+    cols[after, 3] = e * s
+    cols[after, 4] = sigma * term - omega * slope  # -d/dτ
+    return cols
