@@ -214,13 +214,27 @@ class _Interrupted(Exception):
     """Ctrl-C inside a command, carried past click (which would print a blank line)."""
 
 
-def _show_compile_notice() -> None:
-    """Print the one-time kernel compilation notice (driveid.sim._compile_notice) on stderr."""
+def _show_notes(name: str) -> None:
+    """Print a driveid logger's messages as notes on stderr.
+
+    ``driveid.compile``: the one-time kernel compilation notice (on a terminal);
+    ``driveid.cost``: the announcement of a long but feasible fit (always, issue 28).
+    """
     import logging
 
-    logger = logging.getLogger("driveid.compile")
+    class _CurrentStderr(logging.StreamHandler):
+        # the stderr of the moment (a test runner swaps it per call), not the first one
+        @property
+        def stream(self):
+            return sys.stderr
+
+        @stream.setter
+        def stream(self, _value):
+            pass
+
+    logger = logging.getLogger(name)
     if not logger.handlers:
-        handler = logging.StreamHandler()
+        handler = _CurrentStderr()
         handler.setFormatter(logging.Formatter("note: %(message)s"))
         logger.addHandler(handler)
         logger.setLevel(logging.INFO)
@@ -262,7 +276,8 @@ class _BoundaryGroup(LazyGroup):
         """
         _harden(self)
         if sys.stderr.isatty():
-            _show_compile_notice()
+            _show_notes("driveid.compile")
+        _show_notes("driveid.cost")
         argv = list(sys.argv[1:] if args is None else args)
         debug = "--debug" in argv[:_first_command(argv, self)]
         status = 0

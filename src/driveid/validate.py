@@ -221,7 +221,14 @@ def _prewhitened(resid, estimate, held_out, lags):
 
 def _base(estimate: Estimate) -> list[float]:
     kind_of(estimate)  # refuses, in one line, what no model here can simulate
-    return [estimate.value(n) for n in _FREE_DECAY]
+    base = [estimate.value(n) for n in _FREE_DECAY]
+    omega0 = base[0]
+    # K = ω0² must be a float (an edited result with ω0 = 1e308 overflowed: exit 70)
+    if not (math.isfinite(omega0) and 0.0 < omega0 < 1e150):
+        raise IdentificationError(
+            f"the estimate's omega0 = {omega0:.6g} rad/s cannot be simulated (it must be "
+            "positive, and its square a number); check the result file")
+    return base
 
 
 def _params(base: list[float]) -> OscillatorParams:

@@ -9,6 +9,7 @@ import click
 
 from driveid.commands import clean_errors
 from driveid.errors import ConfigError, FileFormatError
+from driveid.io.consistency import load_json
 
 __all__ = ["catalog_group", "catalog_option", "open_catalog", "check_catalog_names_a_file"]
 
@@ -79,11 +80,11 @@ def catalog_add_command(results, machine, axis, machine_type, measured_at, catal
     """
     with open_catalog(catalog) as cat:
         for path in results:
-            try:
-                result = json.loads(path.read_text(encoding="utf-8"))
-            except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-                raise FileFormatError(f"{path} is not JSON ({exc}); pass the output of "
-                                      "'driveid identify ... --json'") from None
+            try:  # nesting thousands deep was a RecursionError (exit 70)
+                result = load_json(path.read_bytes(), str(path))
+            except FileFormatError as exc:
+                raise FileFormatError(f"{exc}; pass the output of 'driveid identify ... "
+                                      "--json'") from None
             try:
                 out = cat.add_result(result, machine=machine, axis=axis,
                                      measured_at=measured_at, machine_type=machine_type)

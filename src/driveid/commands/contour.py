@@ -12,7 +12,7 @@ from driveid.commands import clean_errors
 from driveid.commands._checks import SEED, PositiveFloat
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
-from driveid.errors import ConfigError
+from driveid.errors import ConfigError, FileFormatError
 
 __all__ = ["simulate_contour_command", "identify_contour_command", "write_contour_csv"]
 
@@ -97,14 +97,16 @@ def simulate_contour_command(config, out, compensate, seed, as_json, max_periods
     ensure_writable(out, overwrite=overwrite)  # fail before the simulation
     comp = None
     if compensate is not None:
+        from driveid.io.consistency import load_json
+
         try:
-            data = json.loads(Path(compensate).read_text(encoding="utf-8"))
+            data = load_json(Path(compensate).read_bytes(), Path(compensate).name)
         except OSError as exc:
             raise ConfigError(f"--compensate: cannot read {compensate}: {exc.strerror}; "
                               "check the path") from None
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"--compensate: {Path(compensate).name} is not JSON ({exc}); "
-                              "pass the --json output of 'driveid identify contour'") from None
+        except FileFormatError as exc:
+            raise ConfigError(f"--compensate: {exc}; pass the --json output of 'driveid "
+                              "identify contour'") from None
         if not isinstance(data, dict):
             raise ConfigError("--compensate: expected a driveid-result JSON object; got "
                               f"{type(data).__name__}")

@@ -20,15 +20,17 @@ SCHEMA = "driveid-validate/1"
 
 def _load_estimate(path: Path):
     from driveid.identify.core.estimate import Estimate
+    from driveid.io.consistency import load_json
 
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise FileFormatError(f"cannot read the result file {path}: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(
-            f"{path} is not JSON ({exc.msg} at line {exc.lineno}); pass the file written "
-            "by an identify command's --json") from None
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise FileFormatError(f"cannot read the result file {path}: {exc.strerror}") from None
+    try:  # nesting thousands deep was a RecursionError (exit 70)
+        data = load_json(raw, str(path))
+    except FileFormatError as exc:
+        raise FileFormatError(f"{exc}; pass the file written by an identify command's "
+                              "--json") from None
     if not isinstance(data, dict) or "parameters" not in data:
         raise FileFormatError(
             f"{path} has no 'parameters': pass the JSON written by an identify command's "

@@ -28,6 +28,7 @@ import numpy as np
 
 from driveid._json import to_jsonable
 from driveid.errors import ConfigError, FileFormatError, ParameterError
+from driveid.io.consistency import load_json
 
 __all__ = ["BLUEPRINT_SCHEMA", "PHYSICAL_PARAMETERS", "Blueprint", "BlueprintParameter",
            "make_blueprint", "read_blueprint", "write_blueprint"]
@@ -259,25 +260,68 @@ def read_blueprint(path: str | Path) -> Blueprint:
         If the file is not a ``driveid-blueprint/1`` JSON.
     """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{path} is not JSON ({exc}); pass a blueprint written by "
-                              "'driveid blueprint make'") from None
+    try:  # nesting thousands deep was a RecursionError (exit 70)
+        data = load_json(path.read_bytes(), str(path))
+    except FileFormatError as exc:
+        raise FileFormatError(f"{exc}; pass a blueprint written by 'driveid blueprint "
+                              "make'") from None
     if not isinstance(data, dict) or data.get("schema") != BLUEPRINT_SCHEMA:
         raise FileFormatError(
             f"{path} is not a blueprint (schema {BLUEPRINT_SCHEMA}); make one with "
             "'driveid blueprint make'")
-    nan = math.nan
-    params = {n: BlueprintParameter(
-        nominal=float(p["nominal"]), spread=float(p["spread"]),
-        repeatability=nan if p.get("repeatability") is None else float(p["repeatability"]),
-        se_ref=nan if p.get("se_ref") is None else float(p["se_ref"]), unit=p.get("unit", "-"),
-        n_axes=int(p.get("n_axes", 0)), n_entries=int(p.get("n_entries", 0)))
-        for n, p in data["parameters"].items()}
+    try:  # an edited or foreign file: one line, not a TypeError deep in the health check
+        return _blueprint_of(data)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        what = f"missing {exc}" if isinstance(exc, KeyError) else str(exc)
+        raise FileFormatError(
+            f"{path} is not a usable blueprint ({what}); make it again with 'driveid "
+            "blueprint make'") from None
+
+
+def _number(p: Mapping, key: str, *, positive: bool = False, optional: bool = False) -> float:
+    value = p.get(key) if optional else p[key]
+    if value is None and optional:
+        return math.nan
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"'{key}' must be a number; got {value!r}")
+    value = float(value)
+    # the health check squares spreads and z-scores: keep them far from overflow
+    if not (math.isfinite(value) and abs(value) < 1e150) or (positive and value <= 0):
+        raise ValueError(f"'{key}' must be a finite number{' > 0' if positive else ''} of "
+                         f"reasonable size; got {value!r}")
+    return value
+
+
+def _blueprint_of(data: dict) -> Blueprint:
+    for key, kind in (("parameters", Mapping), ("monitored", list)):
+        if not isinstance(data[key], kind):
+            raise ValueError(f"'{key}' must be a JSON {'object' if kind is Mapping else 'list'}"
+                             f"; got {type(data[key]).__name__}")
+    params = {}
+    for n, p in data["parameters"].items():
+        if not isinstance(p, Mapping):
+            raise ValueError(f"parameter '{n}' must be an object; got {p!r}")
+        params[str(n)] = BlueprintParameter(
+            nominal=_number(p, "nominal"), spread=_number(p, "spread", positive=True),
+            repeatability=_number(p, "repeatability", optional=True),
+            se_ref=_number(p, "se_ref", optional=True), unit=str(p.get("unit", "-")),
+            n_axes=int(p.get("n_axes", 0)), n_entries=int(p.get("n_entries", 0)))
+    monitored = tuple(str(n) for n in data["monitored"])
+    if not monitored:
+        raise ValueError("it monitors no parameter ('monitored' is empty)")
+    unknown = [n for n in monitored if n not in params]
+    if unknown:
+        raise ValueError(f"'monitored' names {unknown}, which 'parameters' lacks")
     corr = data.get("correlation") or {}
+    if corr and not isinstance(corr, Mapping):
+        raise ValueError(f"'correlation' must be an object {{names, matrix}}; got "
+                         f"{type(corr).__name__}")
     if corr:
-        corr = {"names": corr["names"], "matrix": np.array(corr["matrix"], float)}
-    return Blueprint(machine_type=data["machine_type"], parameters=params,
-                     monitored=tuple(data["monitored"]), correlation=corr,
-                     source=data.get("source", {}))
+        names = [str(n) for n in corr["names"]]
+        matrix = np.array(corr["matrix"], float)
+        if matrix.shape != (len(names), len(names)) or not np.all(np.isfinite(matrix)):
+            raise ValueError(f"the correlation matrix must be {len(names)} x {len(names)} "
+                             f"finite numbers; got shape {matrix.shape}")
+        corr = {"names": names, "matrix": matrix}
+    return Blueprint(machine_type=str(data["machine_type"]), parameters=params,
+                     monitored=monitored, correlation=corr, source=data.get("source", {}))

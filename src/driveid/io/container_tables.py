@@ -127,6 +127,10 @@ def _read_json(path: Path) -> Table:
             obj = json.load(fh)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise FileFormatError(f"{path.name}: not valid JSON ({exc})") from None
+    except RecursionError:  # issue 28, campaign 4: was an internal error
+        raise FileFormatError(
+            f"{path.name}: JSON nested thousands of levels deep, which no record needs (a "
+            "record is columns of numbers, or rows of them); export the data again") from None
     collector = _Collector()
     meta = {}
     if isinstance(obj, Mapping) and isinstance(obj.get("meta"), Mapping):
@@ -239,6 +243,15 @@ def _not_mat(path: Path, head: bytes) -> str:
 
 
 def _read_hdf5(path: Path, matlab: bool = False) -> Table:
+    try:
+        return _hdf5_table(path, matlab)
+    except RuntimeError as exc:  # a soft link that loops (issue 28, campaign 4)
+        raise FileFormatError(
+            f"{path.name}: its HDF5 links cannot be followed ({exc}); save the datasets "
+            "without soft or external links that point back at each other") from None
+
+
+def _hdf5_table(path: Path, matlab: bool) -> Table:
     import h5py
 
     collector = _Collector()

@@ -172,19 +172,17 @@ def load_results(paths: Sequence[str | Path]) -> list[Any]:
     FileFormatError
         If a file is not JSON or not a driveid result.
     """
-    import json
-
     from driveid.errors import FileFormatError
     from driveid.identify.core.estimate import Estimate
+    from driveid.io.consistency import load_json
 
     results = []
     for path in paths:
-        try:
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise FileFormatError(
-                f"{path} is not JSON ({exc}); give a file written by an identify command's "
-                "--json") from None
+        try:  # nesting thousands deep was a RecursionError (exit 70)
+            data = load_json(Path(path).read_bytes(), str(path))
+        except FileFormatError as exc:
+            raise FileFormatError(f"{exc}; give a file written by an identify command's "
+                                  "--json") from None
         try:
             if not isinstance(data, Mapping):
                 raise ValueError(f"got a JSON {type(data).__name__}, not an object")

@@ -390,6 +390,15 @@ def filtered_random(*, f_min: float, f_max: float, duration: float, fs: float,
     t = _grid(duration, fs)
     f_min, f_max = _band(f_min, f_max, fs)
     amplitude = _positive("amplitude", amplitude, "N or N·m")
+    # the zero-phase filter runs forward and back over the record: it needs one period of
+    # the lowest frequency and its own start-up (27 samples) (issue 28: was an internal error)
+    shortest = max(1.0 / f_min, 28.0 / fs)
+    if duration < shortest:
+        raise ParameterError(
+            f"duration {duration:g} s is too short for a random signal in {f_min:g}..{f_max:g}"
+            f" Hz at {fs:g} Hz: it needs at least {shortest:.3g} s (one period of f_min and "
+            "28 samples for the band-pass filter); give a longer --duration or a higher "
+            "--f-min")
     rng = np.random.default_rng(seed)
     sos = _sig.butter(4, [f_min, f_max], btype="bandpass", fs=fs, output="sos")
     u = _sig.sosfiltfilt(sos, rng.standard_normal(t.size))

@@ -539,6 +539,8 @@ _SIMS_PER_UNKNOWN = 200
 #: Default budget of RK4 steps of a whole fit: ~150 times the test bed's (6e7), about an
 #: hour on one core; a stiff contact on a light body needs 1e11 per second of record.
 DEFAULT_FIT_STEPS = 10**10
+#: A fit expected to take longer than this [s] is announced before it starts.
+ANNOUNCE_SECONDS = 30.0
 
 
 def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknowns: int,
@@ -585,6 +587,14 @@ def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknow
             f"{max_steps:.2g} steps (max_steps, CLI --max-steps), about "
             f"{_duration_words(seconds)} of work; soften or fix that element in the start "
             "TOML (lower k, raise J), fit a shorter window (FILE@T0:T1), or raise the budget")
+    seconds = sims * sum(c.seconds for c in costs)
+    if seconds > ANNOUNCE_SECONDS:  # long but feasible: say so before the silence (issue 28)
+        import logging
+
+        logging.getLogger("driveid.cost").info(
+            f"identify drive: about {sims} simulations of {sum(c.n_steps for c in costs):.3g} "
+            f"RK4 steps and {params.n_bodies} bodies each, about {_duration_words(seconds)} "
+            "on one core (an estimate; the fit may stop sooner or run longer)")
     return sims
 
 

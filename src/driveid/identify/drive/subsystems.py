@@ -129,21 +129,19 @@ def estimate_subsystems(manifest: str | Path) -> Estimate:
         raise ConfigError(f"{path.name}: needs two or more [[section]] tables (A, then A+B "
                           f"...); got {0 if not isinstance(tables, list) else len(tables)}")
     sections, published, results = [], [], {}
-    for i, table in enumerate(tables):
-        where = f"{path.name}: section[{i + 1}]"
-        unknown = sorted(set(table) - _SECTION_KEYS)
-        if unknown:
-            raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed {sorted(_SECTION_KEYS)}")
-        missing = [k for k in ("name", "config", "files") if k not in table]
-        if missing:
-            raise ConfigError(f"{where}: missing {missing}; add them")
+    for i, table in enumerate(tables):  # every section checked before the first fit
+        _check_section(table, f"{path.name}: section[{i + 1}]")
+    names = [str(t["name"]) for t in tables]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:  # a part is named after its section: a second "A" overwrote the first
+        raise ConfigError(f"{path.name}: section names must differ (each part is named after "
+                          f"its section); {twice} appear more than once")
+    for table in tables:
         files = table["files"]
-        if not isinstance(files, list) or not files:
-            raise ConfigError(f"{where}.files: must be a non-empty list of files; got {files!r}")
         params, run = load_drive_config(path.parent / table["config"])
         records = [read_drive_record(path.parent / f, read_kwargs={"max_jitter": None},
                                      n_bodies=params.n_bodies) for f in files]
-        est = estimate_drive(records, params, estimate=table.get("estimate", _DEFAULT),
+        est = estimate_drive(records, params, estimate=_names(table.get("estimate", _DEFAULT)),
                              x0=run.x0, v0=run.v0, torque=run.torque, units=run.units)
         sections.append((str(table["name"]), est))
         published.append(dict(table.get("published", {})))
@@ -153,6 +151,45 @@ def estimate_subsystems(manifest: str | Path) -> Estimate:
     table = _table(sections, published, out)
     return Estimate(method="subsystems", params=out.params, warnings=tuple(warnings),
                     diagnostics={"table": table, "sections": results})
+
+
+def _names(estimate) -> list[str]:
+    """Return a section's ``estimate``: a list of names, or one comma-separated string."""
+    if isinstance(estimate, str):  # read one character at a time before
+        return [n.strip() for n in estimate.split(",") if n.strip()]
+    return list(estimate)
+
+
+def _check_section(table, where: str) -> None:
+    """Refuse a malformed [[section]] in one line, before any fit runs."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{where}: must be a [[section]] table; got {table!r}")
+    unknown = sorted(set(table) - _SECTION_KEYS)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {unknown}; allowed {sorted(_SECTION_KEYS)}")
+    missing = [k for k in ("name", "config", "files") if k not in table]
+    if missing:
+        raise ConfigError(f"{where}: missing {missing}; add them")
+    files = table["files"]
+    if not isinstance(files, list) or not files:
+        raise ConfigError(f"{where}.files: must be a non-empty list of files; got {files!r}")
+    estimate = table.get("estimate", [])
+    if not isinstance(estimate, (str, list)) or (isinstance(estimate, list) and not all(
+            isinstance(n, str) for n in estimate)):
+        raise ConfigError(f"{where}.estimate: must be a list of parameter names (e.g. "
+                          f"[\"body1.J\", \"body1.c_mean\"]); got {estimate!r}")
+    pub = table.get("published", {})
+    if not isinstance(pub, dict):
+        raise ConfigError(f"{where}.published: must be a table of {list(_QUANTITIES)}; got "
+                          f"{pub!r}")
+    for key, value in pub.items():
+        if key not in _QUANTITIES:
+            raise ConfigError(f"{where}.published: unknown quantity {key!r}; give some of "
+                              f"{list(_QUANTITIES)} (cumulative values, SI units)")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not math.isfinite(float(value)):
+            raise ConfigError(f"{where}.published.{key}: must be a finite number; got "
+                              f"{value!r}")
 
 
 def _table(sections, published, out: Estimate) -> str:

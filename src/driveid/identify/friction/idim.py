@@ -294,6 +294,12 @@ def estimate_idim(
                 "edge": edge, "offset": offset, "regressors": regressors,
                 "min_speed": min_speed}
     blocks, p = _stack(recs, loads, settings)
+    if load is not None and not any(np.any(b[1]) for b in blocks):
+        # issue 28, campaign 4: --load u (the force itself) left nothing, a division by 0
+        raise IdentificationError(
+            "the force minus the known load is zero on every row, so there is nothing left "
+            "for IDIM to fit; check the known load (load=): it must be a force the "
+            "drive does not supply (gravity, a spring), not the force column itself")
     v_all = np.concatenate([b[3] for b in blocks])
     _check_motion(v_all, model, offset)
     w = _weights(weights, len(recs))
