@@ -201,6 +201,26 @@ def whiteness(residual: np.ndarray, lags: int = 20) -> dict[str, Any]:
             "acf": acf}
 
 
+def _refuse_divergence(y, y_hat, model) -> None:
+    """Refuse a simulation that ran away from the record (a fit % of -1e98 before).
+
+    A model whose damping or viscous friction is negative (an edited result, or a fit far
+    off) grows without bound; the comparison would say nothing but that.
+    """
+    scale = float(np.ptp(y)) + float(np.max(np.abs(y))) + 1e-300
+    worst = float(np.max(np.abs(y_hat))) if y_hat.size else 0.0
+    if math.isfinite(worst) and worst <= 1e6 * scale:
+        return
+    negative = [k for k in ("c_mean", "Fv", "Fv_plus", "Fv_minus", "zeta_plus", "zeta_minus")
+                if isinstance(model.get(k), (int, float)) and model[k] < 0]
+    cause = (f"its {', '.join(negative)} < 0 (negative damping) makes it grow without bound"
+             if negative else "it is unstable over this record")
+    raise IdentificationError(
+        f"the identified model's response runs away from the record (it reaches "
+        f"{worst:.3g} against at most {scale:.3g} measured): {cause}; check the result's "
+        "values, or identify the record again")
+
+
 def _prewhitened(resid, estimate, held_out, lags):
     """Whiteness of the residual through the fit's AR noise model ``A(q)``, or None.
 
@@ -421,6 +441,7 @@ def compare(record: Record, estimate: Estimate, *, index: int | None = None,
         model = {**model, "noise_model": estimate.diagnostics["noise_model"]}
     y = np.asarray(record.x, float)
     resid = y - y_hat
+    _refuse_divergence(y, y_hat, model)
     spread = float(np.linalg.norm(y - np.mean(y)))
     fit = 100.0 * (1.0 - float(np.linalg.norm(resid)) / spread) if spread > 0 else math.nan
     white = whiteness(resid, lags)

@@ -76,6 +76,12 @@ def output_options(func: Callable[..., Any]) -> Callable[..., Any]:
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
+        report = kwargs.get("out_report")
+        if report is not None and report.suffix.lower() not in (".html", ".htm"):
+            # the report is HTML whatever the name (a .pdf of HTML before; issue 28)
+            raise click.BadParameter(
+                f"the report is one HTML file; name it .html (got {str(report)!r}); for a "
+                "PNG, PDF or SVG picture use --figure", param_hint="'--report'")
         kwargs["output_opts"] = OutputOptions(
             as_json=kwargs.pop("out_json"), series=kwargs.pop("out_series"),
             figure=kwargs.pop("out_figure"), report=kwargs.pop("out_report"),

@@ -22,6 +22,7 @@ from typing import Any
 
 import click
 
+from driveid.commands._checks import PositiveFloat
 from driveid.commands._output import cli_text
 from driveid.io.reading_options import reading_as_cli
 
@@ -323,9 +324,11 @@ def record_options(func: Callable[..., Any]) -> Callable[..., Any]:
                           "v=0.02/60; repeatable."),
         click.option("--unit", "opt_unit", multiple=True, metavar="COL=UNIT",
                      help="State or override a column's unit, e.g. x=mm; repeatable."),
-        click.option("--counts-per-rev", "opt_counts_per_rev", type=float, default=None,
+        click.option("--counts-per-rev", "opt_counts_per_rev", type=PositiveFloat(min=1.0),
+                     default=None,
                      help="Encoder counts per revolution, for positions in counts."),
-        click.option("--counts-per-metre", "opt_counts_per_metre", type=float, default=None,
+        click.option("--counts-per-metre", "opt_counts_per_metre",
+                     type=PositiveFloat(min=1.0), default=None,
                      help="Encoder counts per metre, for positions in counts."),
         click.option("--sign-magnitude", "opt_sign_magnitude", multiple=True,
                      metavar="COL:BITS",

@@ -81,7 +81,7 @@ def catalog_add_command(results, machine, axis, machine_type, measured_at, catal
     with open_catalog(catalog) as cat:
         for path in results:
             try:  # nesting thousands deep was a RecursionError (exit 70)
-                result = load_json(path.read_bytes(), str(path))
+                result = load_json(path.read_bytes(), str(path), constants=True)
             except FileFormatError as exc:
                 raise FileFormatError(f"{exc}; pass the output of 'driveid identify ... "
                                       "--json'") from None

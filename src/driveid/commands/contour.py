@@ -100,7 +100,8 @@ def simulate_contour_command(config, out, compensate, seed, as_json, max_periods
         from driveid.io.consistency import load_json
 
         try:
-            data = load_json(Path(compensate).read_bytes(), Path(compensate).name)
+            data = load_json(Path(compensate).read_bytes(), Path(compensate).name,
+                             constants=True)
         except OSError as exc:
             raise ConfigError(f"--compensate: cannot read {compensate}: {exc.strerror}; "
                               "check the path") from None

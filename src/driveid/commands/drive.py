@@ -147,5 +147,14 @@ def drive_command(config, preset_name, duration, max_steps, out, overwrite, forc
     click.echo(f"wrote {path} ({kept} samples, {params.n_bodies} "
                f"bod{'y' if params.n_bodies == 1 else 'ies'}, "
                f"{result.n_impacts} impacts, {result.n_mode_switches} mode switches)")
+    active = [f"body {i + 1} (c_mean - |c_delta| = {b.c_mean - abs(b.c_delta):g})"
+              for i, b in enumerate(params.bodies) if b.c_mean - abs(b.c_delta) < 0]
+    if active:  # issue 28: a run that grew to 3e34 was silent
+        finite = np.asarray(result.x, float)
+        finite = finite[np.isfinite(finite)]
+        reach = float(np.max(np.abs(finite))) if finite.size else math.inf
+        click.echo(f"warning: negative viscous friction on {', '.join(active)} feeds energy "
+                   f"in: the motion reaches |x| = {reach:.3g} (a self-excited drive; check "
+                   "the config's signs)", err=True)
     if result.aborted:
         click.echo(f"aborted: {result.abort_reason}")

@@ -65,9 +65,24 @@ def forced_command(files, omega, K_known, friction, x_ref, pho, record_opts, out
 @clean_errors
 def envelope_command(file, mass, min_snr, record_opts, output_opts):
     """Viscous and Coulomb damping from the Hilbert envelope of a free decay in FILE."""
+    import math
+
+    import numpy as np
+
     from driveid.identify.free_decay.hilbert import estimate_envelope_damping
 
     record = record_opts.read(file)
     est = estimate_envelope_damping(record, mass=mass, min_snr=min_snr)
+    if record.u is not None and np.any(record.u):  # issue 28: a forced run gave nan silently
+        est = est.with_warnings(
+            f"the record has a force or torque input (max |u| = "
+            f"{float(np.max(np.abs(record.u))):.3g}): the envelope method reads a free decay; "
+            "for a driven run use driveid identify forced or idim")
+    missing = [n for n, p in est.params.items() if not p.fixed and math.isfinite(p.value)
+               and not math.isfinite(p.stderr)]
+    if missing:
+        est = est.with_warnings(f"{', '.join(missing)} came out without a standard error (too "
+                                "few envelope samples to judge the scatter); treat the value "
+                                "as unverified")
     emit(est, output_opts, records=[record], figure=lambda: plot_of(est, record),
          header=f"method: {est.method}")

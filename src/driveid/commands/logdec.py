@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import SEED, bootstrap_options, parse_quantisation
+from driveid.commands._checks import SEED, PositiveFloat, bootstrap_options, parse_quantisation
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
 
@@ -38,9 +38,9 @@ __all__ = ["free_decay_command", "logdec_command"]
               help="Sampling rate [Hz].")
 @click.option("--noise", type=float, default=0.0, show_default=True,
               help="Gaussian position noise, standard deviation [m or rad].")
-@click.option("--counts-per-rev", type=float, default=None,
+@click.option("--counts-per-rev", type=PositiveFloat(min=1.0), default=None,
               help="Rotary encoder quantisation [counts/rev].")
-@click.option("--counts-per-metre", type=float, default=None,
+@click.option("--counts-per-metre", type=PositiveFloat(min=1.0), default=None,
               help="Linear encoder quantisation [counts/m].")
 @click.option("--units", type=click.Choice(["rad", "m"]), default="rad", show_default=True,
               help="Rotational (rad, N·m) or translational (m, N) record.")
@@ -60,8 +60,16 @@ def free_decay_command(J, K, c_mean, c_delta, fk_mean, fk_delta, fs_mean, fs_del
 
     params = OscillatorParams(J=J, K=K, c_mean=c_mean, c_delta=c_delta, fk_mean=fk_mean,
                               fk_delta=fk_delta, fs_mean=fs_mean, fs_delta=fs_delta)
-    result = simulate_free_decay(params, x0=x0, duration=duration, fs=fs)
-    record = result.record
+    from driveid.errors import RecordError, SimulationError
+
+    try:
+        result = simulate_free_decay(params, x0=x0, duration=duration, fs=fs)
+        record = result.record
+    except RecordError as exc:  # the record refuses inf (J = 1e-300: issue 28)
+        raise SimulationError(
+            f"the simulated decay is not finite ({exc}); J = {J:g}, K = {K:g}: check the "
+            "values and their SI units (J in kg·m² or kg, K in N·m/rad or N/m)") from None
+    _active_warnings(params, record.x, x0)
     if units == "m":
         record = record.replace(meta={"units": {"x": "m", "u": "N", "v": "m/s"}})
     record = measure(record, noise_std=noise, counts_per_rev=counts_per_rev,
@@ -69,6 +77,31 @@ def free_decay_command(J, K, c_mean, c_delta, fk_mean, fk_delta, fs_mean, fs_del
     path = write_record(record, out, overwrite=overwrite or force_alias)
     stuck = f", stuck at t = {result.stuck_at:.4g} s" if result.stuck_at is not None else ""
     click.echo(f"wrote {path} ({record.n} samples, {result.n_reversals} reversals{stuck})")
+
+
+def _active_warnings(params, x, x0) -> None:
+    """Say so when the simulated body is not passive (issue 28: a growing decay was silent)."""
+    import numpy as np
+
+    from driveid.errors import SimulationError
+
+    if not np.all(np.isfinite(x)):
+        raise SimulationError(
+            f"the simulated decay overflows (J = {params.J:g}, K = {params.K:g}, c_mean = "
+            f"{params.c_mean:g}): check the values and their SI units (J in kg·m² or kg, K "
+            "in N·m/rad or N/m)")
+    notes = []
+    if params.c_mean - abs(params.c_delta) < 0:
+        notes.append(f"its viscous friction is negative in one direction at least (c_mean - "
+                     f"|c_delta| = {params.c_mean - abs(params.c_delta):g}), which feeds "
+                     "energy in")
+    if abs(params.fk_delta) > params.fk_mean:
+        notes.append(f"|fk_delta| = {abs(params.fk_delta):g} exceeds fk_mean = "
+                     f"{params.fk_mean:g}, so friction pushes the body in one direction")
+    if notes:
+        click.echo(f"warning: the simulated body is not passive: {'; '.join(notes)}; the "
+                   f"response reaches |x| = {float(np.max(np.abs(x))):.3g} from x0 = {x0:g} "
+                   "(a self-excited system; no real free decay does this)", err=True)
 
 
 @click.command("logdec")

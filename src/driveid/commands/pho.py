@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import SEED, bootstrap_options, parse_quantisation
+from driveid.commands._checks import SEED, PositiveFloat, bootstrap_options, parse_quantisation
 from driveid.commands._output import emit, output_options, plot_of
 from driveid.commands._progress import progress_bar
 from driveid.commands._record_options import RecordOptions, record_options
@@ -142,9 +142,9 @@ def pho_group():
               help="Sampling rate [Hz].")
 @click.option("--noise", type=float, default=0.0, show_default=True,
               help="Position noise standard deviation [rad or m].")
-@click.option("--counts-per-rev", type=float, default=None,
+@click.option("--counts-per-rev", type=PositiveFloat(min=1.0), default=None,
               help="Encoder quantisation [counts/rev] (rotational presets).")
-@click.option("--counts-per-metre", type=float, default=None,
+@click.option("--counts-per-metre", type=PositiveFloat(min=1.0), default=None,
               help="Encoder quantisation [counts/m] (translational presets).")
 @click.option("--seed", type=SEED, default=None, help="Seed of the noise generator.")
 @click.option("--abort-limit", type=float, default=None,

@@ -27,7 +27,7 @@ def _load_estimate(path: Path):
     except OSError as exc:
         raise FileFormatError(f"cannot read the result file {path}: {exc.strerror}") from None
     try:  # nesting thousands deep was a RecursionError (exit 70)
-        data = load_json(raw, str(path))
+        data = load_json(raw, str(path), constants=True)
     except FileFormatError as exc:
         raise FileFormatError(f"{exc}; pass the file written by an identify command's "
                               "--json") from None

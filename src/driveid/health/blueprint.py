@@ -261,7 +261,7 @@ def read_blueprint(path: str | Path) -> Blueprint:
     """
     path = Path(path)
     try:  # nesting thousands deep was a RecursionError (exit 70)
-        data = load_json(path.read_bytes(), str(path))
+        data = load_json(path.read_bytes(), str(path), constants=True)
     except FileFormatError as exc:
         raise FileFormatError(f"{exc}; pass a blueprint written by 'driveid blueprint "
                               "make'") from None
@@ -280,7 +280,7 @@ def read_blueprint(path: str | Path) -> Blueprint:
 
 def _number(p: Mapping, key: str, *, positive: bool = False, optional: bool = False) -> float:
     value = p.get(key) if optional else p[key]
-    if value is None and optional:
+    if optional and (value is None or (isinstance(value, float) and math.isnan(value))):
         return math.nan
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f"'{key}' must be a number; got {value!r}")

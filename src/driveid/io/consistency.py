@@ -222,7 +222,8 @@ def _depth(text: str) -> int:
     return deepest
 
 
-def load_json(text: str | bytes, source: str, *, max_depth: int = MAX_JSON_DEPTH) -> Any:
+def load_json(text: str | bytes, source: str, *, max_depth: int = MAX_JSON_DEPTH,
+              constants: bool = False) -> Any:
     """Parse JSON, refusing absurd nesting and non-finite numbers with one-line errors.
 
     Parameters
@@ -233,6 +234,9 @@ def load_json(text: str | bytes, source: str, *, max_depth: int = MAX_JSON_DEPTH
         Name used in messages (the file name, "meta line of a.csv").
     max_depth : int
         Deepest nesting of objects and arrays accepted [-].
+    constants : bool
+        Read ``NaN`` and ``Infinity`` as floats (a result file, whose reader decides what
+        a missing number means) instead of refusing them.
 
     Returns
     -------
@@ -268,7 +272,7 @@ def load_json(text: str | bytes, source: str, *, max_depth: int = MAX_JSON_DEPTH
                               "null for an unknown value")
 
     try:
-        return json.loads(text, parse_constant=_constant)
+        return json.loads(text) if constants else json.loads(text, parse_constant=_constant)
     except json.JSONDecodeError as exc:
         raise FileFormatError(
             f"{source} is not valid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}"

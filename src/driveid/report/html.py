@@ -179,7 +179,7 @@ def load_results(paths: Sequence[str | Path]) -> list[Any]:
     results = []
     for path in paths:
         try:  # nesting thousands deep was a RecursionError (exit 70)
-            data = load_json(Path(path).read_bytes(), str(path))
+            data = load_json(Path(path).read_bytes(), str(path), constants=True)
         except FileFormatError as exc:
             raise FileFormatError(f"{exc}; give a file written by an identify command's "
                                   "--json") from None

@@ -379,7 +379,8 @@ def _second_mode_starts(times, y, p, counts, per) -> list[np.ndarray]:
     """Start values ``ω₂, σ₂, a_r, b_r`` of a second mode, or none.
 
     Tried only where the base fit's residual has its largest spectral peak above the mode
-    (more than 1.2 ω, below 0.45 of the sample rate, five periods in the shortest record):
+    (more than 1.2 ω, below 0.45 of the sample rate, five periods in the shortest record, and
+    not within 1 % of a harmonic kω, k <= 10):
     a free decay's fitted mode is its fundamental, and slow wander (1/f-like noise, drift)
     must not pass for a mode below it (on the issue-24 1/f-like records a window down to
     0.05 ω chose one in 14 of 40). Amplitudes by linear least squares at two decay rates
@@ -394,6 +395,11 @@ def _second_mode_starts(times, y, p, counts, per) -> list[np.ndarray]:
     shortest = min(float(t[-1] - t[0]) for t in times)
     if not (1.2 * omega_d < w2 < 0.45 * 2 * math.pi * fs
             and w2 * shortest >= 5 * 2 * math.pi):
+        return []
+    ratio = w2 / omega_d
+    if round(ratio) <= 10 and abs(ratio - round(ratio)) < 0.01 * ratio:
+        # a harmonic of the mode is distortion (a sensor or spring that is not linear: x|x|
+        # puts 3ω in the residual), not a second mode, which has a frequency of its own
         return []
     out = []
     for zeta in (0.01, 0.1):

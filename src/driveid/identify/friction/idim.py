@@ -300,6 +300,11 @@ def estimate_idim(
             "the force minus the known load is zero on every row, so there is nothing left "
             "for IDIM to fit; check the known load (load=): it must be a force the "
             "drive does not supply (gravity, a spring), not the force column itself")
+    for j, expr in enumerate(regressors, start=p - len(regressors)):
+        if not any(np.any(b[0][:, j]) for b in blocks):  # reported as nan before
+            raise IdentificationError(
+                f"the regressor {expr!r} is zero on every row, so its coefficient cannot be "
+                "estimated; drop it (--regressor) or check its expression")
     v_all = np.concatenate([b[3] for b in blocks])
     _check_motion(v_all, model, offset)
     w = _weights(weights, len(recs))
