@@ -205,7 +205,8 @@ def test_cli_errors_are_one_line(tmp_path):
     bad.write_text("{not json")
     out = runner.invoke(catalog_group, ["add", str(bad), "--machine", "m", "--axis", "x",
                                         "--catalog", str(tmp_path / "c.sqlite")])
-    assert out.exit_code == 2 and out.output.startswith("error: ") and "not valid JSON" in out.output
+    assert out.exit_code == 2 and out.output.startswith("error: ")
+    assert "not valid JSON" in out.output
     out = runner.invoke(catalog_group, ["list", "--catalog", str(tmp_path / "none.sqlite")])
     assert out.exit_code == 2 and "no catalogue at" in out.output
     assert not (tmp_path / "none.sqlite").exists()
