@@ -128,8 +128,10 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
     params, run = load_drive_config(config)
     names = [n.strip() for n in estimate.split(",") if n.strip()]
     piece_length = _piece_option(pieces)
-    if input_body is not None and input_body < 1:
-        raise click.UsageError(f"--input-body counts bodies from 1; got {input_body}")
+    if input_body is not None and not 1 <= input_body <= params.n_bodies:
+        raise click.UsageError(f"--input-body counts bodies from 1 to {params.n_bodies} (the "
+                               f"drive of {config.name if hasattr(config, 'name') else config})"
+                               f"; got {input_body}")
     if model_out is not None:
         from driveid.io import ensure_writable
 

@@ -412,6 +412,11 @@ def run_pho_campaign(
             f"x0 is the magnitude of the initial displacement and must be > 0 [rad or m]; "
             f"got {x0!r}")
     if abort_limit is None:
+        if not any(P_grid):  # the default limit follows P: P = 0 made it 0 (issue 28)
+            raise ParameterError(
+                "every P value is 0: the loop's P gain is the oscillator's spring, so a "
+                "PHO campaign needs P > 0 (e.g. --P 2,3,4); got P_values "
+                f"{[float(p) for p in P_grid]}")
         abort_limit = 2.0 * max(abs(p) for p in P_grid) * x0
     if not (isinstance(abort_limit, (int, float)) and abort_limit > 0):
         raise ParameterError(

@@ -295,6 +295,15 @@ def _parse(config) -> tuple[DriveParams, RunOptions]:
                              "feedback")
             _require(values, ("P", "D"), "feedback")
             feedback = _build(PDFeedback, values, "feedback")
+    if feedback is not None:  # counted from 1 here, as the user wrote it (0-based leaked before)
+        nb = len(bodies)
+        if feedback.body >= nb:
+            raise _fail("feedback.body", f"names body {feedback.body + 1}, but the drive has "
+                                         f"{nb} bod{'y' if nb == 1 else 'ies'} (counted from 1)")
+        if bodies[feedback.body].locked:
+            raise _fail("feedback.body", f"body {feedback.body + 1} is locked; the feedback "
+                                         "must act on a body that moves: unlock it or name "
+                                         "another")
     try:
         params = DriveParams(bodies=bodies, links=links, feedback=feedback)
     except ParameterError as exc:

@@ -168,6 +168,10 @@ def estimate_drive_cost(params: DriveParams, *, duration: float, fs: float = 100
 
 
 def _max_step(params: DriveParams, fs: float, rate: float, max_step: float | None) -> float:
+    if not math.isfinite(rate):  # J = 1e-320: sqrt(k/J) overflows, the step would be 0
+        raise ParameterError(
+            f"simulate_drive: the drive's fastest mode, {_stiffest(params)[1]}, has no finite "
+            "rate (an inertia of nearly 0?); check the values and their SI units")
     if max_step is None:
         max_step = 0.2 / rate if rate > 0 else 1.0 / fs
     _require(isinstance(max_step, (int, float)) and max_step > 0,
@@ -201,6 +205,16 @@ def check_drive_cost(cost: DriveCost, *, duration: float,
     from driveid.io.consistency import available_memory, check_allocation, format_bytes
 
     free = available_memory()
+    steps_part = 32.0 * (cost.n_steps + 2)
+    if cost.memory + cost.history > free and cost.history > cost.memory \
+            and steps_part > 0.5 * cost.history:
+        # the grid, not the delay: a stiff element's tiny step (J = 1e-300, K = 1e300)
+        raise ParameterError(
+            f"simulate_drive: {cost.n_steps:.3g} RK4 steps of {cost.step:.2g} s (the step "
+            f"resolves the stiffest mode, {cost.stiffest}, period {cost.period:.2g} s) need "
+            f"about {format_bytes(cost.history)} of feedback history, more than the "
+            f"{format_bytes(free)} of memory available; check that element's values and SI "
+            "units (a J near 0 or a stiffness far above the drive's), or shorten the duration")
     if cost.memory + cost.history > free and cost.history > cost.memory:
         # issue 28: [feedback] delay = 1e6 s allocated its ring in the kernel: "out of memory"
         raise ParameterError(
