@@ -146,7 +146,7 @@ def test_backlash_link_keys():
     ({"body": [{"J": 1.0}], "feedback": {"P": 1.0, "D": 0.0, "body": 0}},
      r"feedback\.body: must be a body number >= 1"),
     ({"body": [{"J": 1.0}], "feedback": {"P": 1.0, "D": 0.0, "body": 2}},
-     r"feedback\.body: PDFeedback\.body must index a body"),
+     r"feedback\.body: names body 2, but the drive has 1 body \(counted from 1\)"),
     ({"preset": "bed"}, r"preset: unknown preset; use one of \['pendulum-cart'"),
     ({"preset": "testbed-a", "body": [{"J": 1.0}]}, r"body: a preset fixes the bodies"),
     ({"preset": "testbed-a", "feedback": {"delay": -1.0}}, r"feedback\.delay: PDFeedback"),
