@@ -144,9 +144,15 @@ def drive_command(config, preset_name, duration, max_steps, out, overwrite, forc
             "run": dataclasses.asdict(options)}
     path = write_drive_csv(result, out, units=options.units, overwrite=True, meta=meta)
     kept = int(np.isfinite(result.x[0]).sum())
-    click.echo(f"wrote {path} ({kept} samples, {params.n_bodies} "
+    click.echo(f"wrote {path} ({kept} sample{'s' if kept != 1 else ''}, {params.n_bodies} "
                f"bod{'y' if params.n_bodies == 1 else 'ies'}, "
                f"{result.n_impacts} impacts, {result.n_mode_switches} mode switches)")
+    from driveid.io.record import MIN_SAMPLES
+
+    if kept < MIN_SAMPLES:  # issue 28: a 1-sample file every reader then refused
+        click.echo(f"warning: {path.name} holds {kept} sample{'s' if kept != 1 else ''}; "
+                   f"driveid reads records of {MIN_SAMPLES} or more: lengthen [run] duration "
+                   "(--duration) or raise [run] fs", err=True)
     active = [f"body {i + 1} (c_mean - |c_delta| = {b.c_mean - abs(b.c_delta):g})"
               for i, b in enumerate(params.bodies) if b.c_mean - abs(b.c_delta) < 0]
     if active:  # issue 28: a run that grew to 3e34 was silent

@@ -289,8 +289,12 @@ def estimate_backlash_loop(record: Record, *, threshold: float | None = None,
     both = [f for f in (f_plus, f_minus) if math.isfinite(f)]
     f_slide = min(both) if both else math.nan
     if not f_slide > 0:
-        raise IdentificationError("no force level found: the force does not reverse with "
-                                  f"the motion; got levels {f_plus:.3g}, {f_minus:.3g}")
+        found = (f"{len(halves)} half cycles of the force" if halves else
+                 "it never passes ±5 % of its peak both ways")
+        raise IdentificationError(
+            f"no force level found: the force does not reverse with the motion ({found}); "
+            "a backlash loop needs a slow cyclic test whose force pushes both ways; check "
+            "the force column (--force COLUMN)")
     thr = 0.2 * f_slide if threshold is None else float(threshold)
     if not (math.isfinite(thr) and 0 < thr < 0.7 * f_slide):
         raise ParameterError(f"threshold must be in (0, 0.7 × force level "
