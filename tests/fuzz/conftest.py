@@ -124,3 +124,15 @@ def good_arrays(good_record):
 
     rec = read_record(good_record)
     return {"t": np.asarray(rec.t), "x": np.asarray(rec.x), "u": np.asarray(rec.u)}
+
+
+@pytest.fixture(scope="session")
+def result_json(tmp_path_factory, good_record) -> Path:
+    """The ``--json`` result of ``identify logdec`` on :func:`good_record` (hostile edits
+    start from it)."""
+    out = CliRunner().invoke(cli, ["identify", "logdec", str(good_record), "--mass", "1",
+                                   "--json"])
+    assert out.exit_code == 0, out.output
+    path = tmp_path_factory.mktemp("res") / "result.json"
+    path.write_text(out.stdout)
+    return path

@@ -48,20 +48,6 @@ def idim_record(tmp_path_factory):
     return path
 
 
-@pytest.fixture(scope="module")
-def result_json(tmp_path_factory, good_record):
-    from click.testing import CliRunner
-
-    from driveid.cli import cli
-
-    out = CliRunner().invoke(cli, ["identify", "logdec", str(good_record), "--mass", "1",
-                                   "--json"])
-    assert out.exit_code == 0, out.output
-    path = tmp_path_factory.mktemp("res") / "result.json"
-    path.write_text(out.stdout)
-    return path
-
-
 # --- once exit 70 -------------------------------------------------------------------------
 
 @pytest.mark.parametrize("command", [("inspect",), ("identify", "logdec")])

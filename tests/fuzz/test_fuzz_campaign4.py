@@ -22,20 +22,6 @@ import pytest
 from tests.fuzz.test_fuzz_campaign3 import _DRIVE_TOML
 
 
-@pytest.fixture(scope="module")
-def result_json(tmp_path_factory, good_record):
-    from click.testing import CliRunner
-
-    from driveid.cli import cli
-
-    out = CliRunner().invoke(cli, ["identify", "logdec", str(good_record), "--mass", "1",
-                                   "--json"])
-    assert out.exit_code == 0, out.output
-    path = tmp_path_factory.mktemp("res4") / "result.json"
-    path.write_text(out.stdout)
-    return path
-
-
 def _motion_csv(path, *, load_is_force=False):
     """2 s of sine motion with viscous and Coulomb friction: t, x, u."""
     t = np.arange(0, 2.0, 1e-3)

@@ -577,9 +577,9 @@ def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknow
         check_drive_cost(c, duration=float(r.t[-1] - r.t[0]), max_steps=None)
     sims = _SIMS_PER_UNKNOWN * (n_unknowns + 1)
     steps = float(sims * sum(c.n_steps for c in costs))
+    seconds = sims * sum(c.seconds for c in costs)
     if max_steps is not None and steps > max_steps:
         worst = max(costs, key=lambda c: c.n_steps)
-        seconds = sims * sum(c.seconds for c in costs)
         raise ParameterError(
             f"identify drive: about {steps:.2g} RK4 steps needed (some {sims} simulations of "
             f"{worst.n_steps:.2g} steps: a {worst.step:.2g} s step resolves the stiffest mode, "
@@ -587,7 +587,6 @@ def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknow
             f"{max_steps:.2g} steps (max_steps, CLI --max-steps), about "
             f"{_duration_words(seconds)} of work; soften or fix that element in the start "
             "TOML (lower k, raise J), fit a shorter window (FILE@T0:T1), or raise the budget")
-    seconds = sims * sum(c.seconds for c in costs)
     if seconds > ANNOUNCE_SECONDS:  # long but feasible: say so before the silence (issue 28)
         import logging
 
