@@ -333,14 +333,23 @@ def _with_second_mode(t, y_hat, x_ref, t_r, mode, index, held_out, y, drift, ext
     The mode's frequency and decay are the estimate's; its amplitude and phase depend on
     how the release excited it, so a held-out record gets them by linear least squares.
     """
-    omega, sigma = float(mode["omega"]), float(mode["sigma"])
+    try:  # a hand-edited result: one line, not an internal error
+        omega, sigma = float(mode["omega"]), float(mode["sigma"])
+        if not held_out:
+            a, b = float(mode["a"][index]), float(mode["b"][index])
+    except (TypeError, ValueError, KeyError, IndexError):
+        raise IdentificationError(
+            "the result's data_used.second_mode must hold the numbers omega, sigma and one a "
+            "and b per record, as identify logdec --json writes them; got "
+            f"{str(mode)[:80]}") from None
+    if not (math.isfinite(omega) and math.isfinite(sigma)):
+        raise IdentificationError(f"the result's second mode is not finite (omega {omega}, "
+                                  f"sigma {sigma}); identify the record again")
     if held_out:
         cols = np.column_stack([second_mode(t, t_r, omega, sigma, 1.0, 0.0),
                                 second_mode(t, t_r, omega, sigma, 0.0, 1.0)])
         target = y - (y_hat + x_ref + drift * (t - t[0]))
         a, b = np.linalg.lstsq(cols, target, rcond=None)[0]
-    else:
-        a, b = float(mode["a"][index]), float(mode["b"][index])
     extra = {**extra, "f2": omega / (2 * math.pi), "sigma2": sigma,
              "structure": "+ second mode" + (" (its amplitude and phase fitted to this "
                                               "record)" if held_out else "")}

@@ -198,3 +198,19 @@ def test_the_envelope_of_a_driven_record_is_warned(run, tmp_path):
     out = run("identify", "envelope", "m.csv")
     out.assert_ok()  # nan standard errors and no word before
     assert "force or torque input" in out.stderr and "without a standard error" in out.stderr
+
+
+@pytest.mark.parametrize("bad", ["abc", {"omega": "x"}], ids=["text", "field-text"])
+def test_a_hand_edited_second_mode(run, tmp_path, bad):
+    # the + second mode structure's data_used (found in the review: exit 70)
+    from driveid.io import write_record
+    from tests.identify.test_free_decay_honesty import _two_mode_decay
+
+    write_record(_two_mode_decay(0), tmp_path / "m.csv")
+    out = run("identify", "logdec", "m.csv", "--mass", "1", "--json")
+    out.assert_ok()
+    data = json.loads(out.stdout)
+    assert data["diagnostics"]["structure"] == "+ second mode"
+    data["data_used"]["second_mode"] = bad
+    (tmp_path / "r.json").write_text(json.dumps(data))
+    run("validate", "r.json", "m.csv").assert_clean_error("second_mode")
