@@ -127,6 +127,7 @@ def test_newer_schema_is_refused(catalog_url):
 
 @pytest.mark.parametrize("bad, match", [
     ({"schema": "other/1", "method": "x", "parameters": {}}, "result schema must be"),
+    ({"schema": "driveid-result/99", "method": "x", "parameters": {}}, "newer driveid"),
     ({"schema": "driveid-result/1", "parameters": {}}, "needs 'method'"),
     ({"method": "x", "parameters": {"K": 3.0}}, "parameter 'K' must be"),
     ({"method": "x", "parameters": {"K": {"value": "a"}}}, "non-numeric"),

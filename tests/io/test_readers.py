@@ -302,6 +302,30 @@ def test_simulink_struct_and_sparse_last_column(tmp_path):
     np.testing.assert_array_equal(read_record(tmp_path / "sparse.csv").x, ref.x)
 
 
+def test_missing_value_cells_and_ragged_rows(tmp_path):
+    ref = decay()
+    rows = [f"{a:.17g},{b:.17g},0" for a, b in zip(ref.t, ref.x, strict=True)]
+    # a logger's missing-value marks: the file still reads from its header, and the record's
+    # finiteness check names them (before, the block search restarted below the last mark
+    # and the file read as headerless: "no time column")
+    marked = list(rows)
+    for i, mark in ((3, "n/a"), (40, "-"), (41, "NaN"), (90, "#N/A")):
+        marked[i] = f"{ref.t[i]:.17g},{mark},{mark if i == 41 else 0}"
+    (tmp_path / "marks.csv").write_text("\n".join(["t [s],x [rad],u [N*m]", *marked]))
+    table = read_table(tmp_path / "marks.csv")
+    assert list(table.columns) == ["t", "x", "u"]
+    assert np.isnan(table.columns["x"]).sum() == 4
+    with pytest.raises(RecordError, match="'x' has 4 non-finite.*drop or interpolate"):
+        read_record(tmp_path / "marks.csv")
+    # a few rows with extra fields under a 3-name header: one line naming the first of them
+    ragged = list(rows)
+    for i in (7, 107):
+        ragged[i] += ",9,9,9"
+    (tmp_path / "ragged.csv").write_text("\n".join(["t [s],x [rad],u [N*m]", *ragged]))
+    with pytest.raises(FileFormatError, match=r"names 3 columns but line 9 \(and 1 more"):
+        read_table(tmp_path / "ragged.csv")
+
+
 @settings(max_examples=100, deadline=None)
 @given(st.text(max_size=40))
 def test_scale_text_never_escapes_the_arithmetic(text):

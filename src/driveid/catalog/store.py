@@ -696,10 +696,13 @@ def _parse_result(result: Mapping[str, Any]):
             f"a result must be a JSON object in schema {RESULT_SCHEMA}; got "
             f"{type(result).__name__}")
     schema = result.get("schema", RESULT_SCHEMA)
-    if not str(schema).startswith("driveid-result/"):
+    if schema != RESULT_SCHEMA:  # a new version means readers break (docs/result-schema.md)
+        newer = str(schema).startswith("driveid-result/")
         raise FileFormatError(
-            f"result schema must be {RESULT_SCHEMA}; got {schema!r}: write the result with "
-            "'driveid identify ... --json'")
+            f"result schema must be {RESULT_SCHEMA}; got {schema!r}: "
+            + ("a schema this driveid does not know (a newer driveid wrote it?): catalogue it "
+               "with that version, or write the result again with this one's --json"
+               if newer else "write the result with 'driveid identify ... --json'"))
     method = result.get("method")
     raw = result.get("parameters")
     if not method or not isinstance(raw, Mapping):

@@ -20,7 +20,7 @@ from typing import Any
 
 import click
 
-__all__ = ["OutputOptions", "output_options", "emit", "plot_of", "cli_text"]
+__all__ = ["OutputOptions", "output_options", "emit", "plot_of", "cli_text", "noise_words"]
 
 
 @dataclass(frozen=True)
@@ -205,6 +205,17 @@ _PYTHON_ASIDE = re.compile(r"\s*\((?:Python|API)\s*:[^()]*(?:\([^()]*\)[^()]*)*\
 # underscore (parameter names such as fk_mean in a warning) stay as they are
 _IDENTIFIER = re.compile(r"(?<![\w.\-])([a-z][a-z0-9]*_[a-z0-9_]*[a-z0-9])"
                          r"(?=\s+(?:must|should|needs|takes|cannot|is not|has to)\b)")
+
+
+def noise_words(noise: dict[str, Any]) -> str:
+    """Describe a fit's noise model for a header line: kind and effective samples.
+
+    ``n_eff`` above the row count is an anti-persistent residual (its long-run variance is
+    below its variance), said in words so that it does not read as a counting error.
+    """
+    n_eff, n = noise.get("n_eff", float("nan")), noise.get("n")
+    extra = ", anti-persistent" if isinstance(n, int) and n_eff > n else ""
+    return f"{noise.get('kind')} (n_eff {n_eff:.0f} of {n} rows{extra})"
 
 
 def _options_of_command() -> dict[str, str]:

@@ -9,7 +9,7 @@ from typing import Any
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._output import cli_text, emit, output_options
+from driveid.commands._output import cli_text, emit, noise_words, output_options
 from driveid.commands._record_options import record_options, split_window_spec
 
 __all__ = ["friction_map_command", "idim_command"]
@@ -153,8 +153,7 @@ def idim_command(files, validate_file, model, cutoff_hz, decimate, offset, load_
     if extra:
         est = dataclasses.replace(est, diagnostics={**est.diagnostics, **extra})
     d = est.diagnostics
-    noise_line = (f"noise: {d['noise_model']['kind']} (n_eff {d['noise_model']['n_eff']:.0f} "
-                  f"of {d['noise_model']['n']} rows)   error bars: "
+    noise_line = (f"noise: {noise_words(d['noise_model'])}   error bars: "
                   f"{d['adequacy']['covariance']}")
     shown = emit(est, output_opts, records=records, figure=lambda: plot_idim(est, val),
                  header=f"method: {est.method}   N = {d['n']}   cond = {d['cond']:.4g}   "

@@ -8,7 +8,7 @@ import click
 
 from driveid.commands import clean_errors
 from driveid.commands._checks import SEED, PositiveFloat, bootstrap_options, parse_quantisation
-from driveid.commands._output import emit, output_options
+from driveid.commands._output import emit, noise_words, output_options
 from driveid.commands._record_options import record_options
 
 __all__ = ["free_decay_command", "logdec_command"]
@@ -187,7 +187,7 @@ def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, b
     if method == "oe" and "structure" in est.diagnostics:
         # which structure and noise model were chosen, and why (issue 24)
         noise = est.diagnostics["noise_model"]
-        counts += (f"   structure: {est.diagnostics['structure']}   noise: {noise['kind']} "
-                   f"(n_eff {noise['n_eff']:.0f})")
+        counts += (f"   structure: {est.diagnostics['structure']}   noise: "
+                   f"{noise_words(noise)}")
     emit(est, output_opts, records=records, figure=figure,
          header=f"method: {est.method}   {counts}")

@@ -153,18 +153,31 @@ def _fields(line: str, sep: str | None) -> list[str]:
 _TIMESTAMP = re.compile(r"^(\d{4}-\d\d-\d\d[ T])?\d{1,2}:\d\d:\d\d([.,]\d+)?Z?$")
 
 
-def _numeric(parts: list[str], decimal: str) -> bool:
+#: Cells that loggers and spreadsheets write for a missing value; they read as NaN, so the
+#: record's finiteness check names them instead of the block search stopping there.
+_MISSING = {"nan", "na", "n/a", "#n/a", "-", "--", "null", "none", "#value!", "#div/0!"}
+
+
+def _numeric(parts: list[str], decimal: str, missing_only: bool = False) -> bool:
+    """Tell whether a line's fields are numbers, timestamps or missing-value marks.
+
+    A line of missing marks alone counts only inside a block (``missing_only``).
+    """
     if not parts:
         return False
+    found = False
     for part in parts:
         if not part:
             continue
         try:
             float(part.replace(",", ".") if decimal == "," else part)
         except ValueError:
+            if part.lower() in _MISSING:
+                continue
             if not _TIMESTAMP.match(part):
                 return False
-    return True
+        found = True
+    return found or missing_only
 
 
 def _header_fields(line: str, sep: str | None, name: str = "") -> list[str]:
@@ -236,7 +249,7 @@ def _sniff(lines: list[str]) -> tuple[str | None, str, int, int]:
             if not line.strip() or _is_comment(line):
                 continue
             parts = _fields(line, sep)
-            if _numeric(parts, decimal):
+            if _numeric(parts, decimal, missing_only=start is not None):
                 if start is None:
                     start = i
                 widths.append(len(parts))
@@ -327,6 +340,8 @@ def _read_text(path: Path) -> Table:
         if len(parts) == width:
             header = parts
             used.add(index)
+        elif parts and not _numeric(parts, decimal):
+            _refuse_ragged(path.name, lines, start, sep, len(parts), width)
         break
     if header is None and unit_row is not None:
         header, unit_row = unit_row, None  # a header whose names all look like units
@@ -379,6 +394,26 @@ def _read_text(path: Path) -> Table:
     return Table(columns=columns, units=units, meta=meta, fs=fs, notes=notes,
                  format=f"text ({sep_name}, decimal {decimal!r}, {where}"
                         f"{', units row' if unit_row else ''})", repeated=repeated)
+
+
+def _refuse_ragged(name: str, lines: list[str], start: int, sep: str | None, named: int,
+                   width: int) -> None:
+    """Refuse rows wider than a header whose width most data rows share.
+
+    Without this the widest row sets the width, the header no longer matches it and the
+    file reads as headerless ("no time column"), which names the wrong problem.
+    """
+    widths = [len(_fields(line, sep)) for line in lines[start:]
+              if line.strip() and not _is_comment(line)]
+    if named not in widths:
+        return  # every row is wider: unnamed columns, read by index as before
+    wide = [start + 1 + i for i, line in enumerate(lines[start:])
+            if line.strip() and not _is_comment(line) and len(_fields(line, sep)) > named]
+    raise FileFormatError(
+        f"{name}: the header names {named} columns but line {wide[0]}"
+        f"{f' (and {len(wide) - 1} more of the first {len(lines)} lines)' if len(wide) > 1 else ''}"
+        f" has up to {width} fields; delete the extra fields of those rows, or name every "
+        "column in the header")
 
 
 #: First fields that label a header line rather than name a column (instrument exports:

@@ -381,7 +381,9 @@ def _diagnostic(key: str, value: Any) -> str:
         more = " …" if len(value.get("ar", [])) > 6 else ""
         return (f"{value.get('kind')} ({coeffs}{more}); innovation sd "
                 f"{_num(value.get('innovation_std') or float('nan'), 3)}, "
-                f"n_eff {_num(value.get('n_eff', float('nan')), 4)} of {value.get('n')}")
+                f"n_eff {_num(value.get('n_eff', float('nan')), 4)} of {value.get('n')}"
+                + (" (anti-persistent)" if isinstance(value.get("n"), int)
+                   and value.get("n_eff", 0) > value["n"] else ""))
     if key == "adequacy" and isinstance(value, dict):
         white = value.get("whiteness") or {}
         words = "adequate" if value.get("adequate") else "NOT adequate"
