@@ -181,6 +181,22 @@ def test_coulomb_dominated_500_s(tmp_path):
     assert est.value("fk_mean") == pytest.approx(truth["fk_mean"], rel=0.02)
 
 
+def test_coulomb_decay_whose_last_half_cycles_hide_below_the_encoder_step(tmp_path):
+    # 0.9 Hz, θk 0.001 rad under a 0.01 rad step: it sticks after ~350 half cycles, and the
+    # last five (amplitudes under one step) are invisible, so the start count was 10 off
+    # and every count near it was refused (exit 2, "no stop count is consistent") until the
+    # search walked on from the refused fits (2026-11-28, a variant of the case above)
+    path, truth = write_coulomb_pendulum(tmp_path, seed=32, f0=0.9, zeta=0.0006,
+                                         theta_k=0.001, x0=1.0, start=0.05)
+    rec = read_record(path, max_jitter=None)
+    with pytest.warns(RecordWarning, match="resampled"):
+        est = estimate_output_error(rec, mass=truth["J"], rng=1)
+    for name in ("c_mean", "fk_mean"):
+        # 4 standard errors: a single record's error bars at 95 % miss 1 run in 20
+        assert abs(est.value(name) - truth[name]) < 4 * est.stderr(name), name
+    assert est.value("fk_mean") == pytest.approx(truth["fk_mean"], rel=0.02)
+
+
 def test_strict_turns_a_damping_bound_into_exit_2(tmp_path):
     p = OscillatorParams(J=1.0, K=16.0, c_mean=0.0, fk_mean=0.05)
     rec = measure(simulate_free_decay(p, x0=1.0, duration=30.0, fs=50.0).record,

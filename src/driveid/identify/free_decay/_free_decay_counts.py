@@ -95,10 +95,13 @@ def _candidates(problem, p_best, counts0, settled=None, max_fits=30):
     for r in range(len(counts0)):
         for step in (-1, 1, -2):
             queue.append([c + step * (i == r) for i, c in enumerate(counts0)])
-    tried, seen, out = set(), set(), []
+    tried, seen, out, refused = set(), set(), [], []
     while len(tried) < max_fits:
-        if not queue and out:  # extend the search around the best so far
-            best = min(out, key=lambda c: c["rss"])["counts"]
+        if not queue and (out or refused):  # extend the search around the best so far
+            # every count refused so far: walk on from the lowest RSS of the refused fits (a
+            # tail below the encoder step hides the last half cycles, so the start count
+            # can be ten or more off: Coulomb-dominated decays, issue 24)
+            best = min(out or refused, key=lambda c: c["rss"])["counts"]
             queue = [[c + step * (i == r) for i, c in enumerate(best)]
                      for r in range(len(best)) for step in (-1, 1)]
             queue = [q for q in queue if tuple(q) not in tried and min(q) >= 1]
@@ -115,6 +118,7 @@ def _candidates(problem, p_best, counts0, settled=None, max_fits=30):
         if sol.status <= 0 or not np.all(np.isfinite(sol.x)):
             continue
         if _forbidden(problem, sol.x, counts):
+            refused.append({"counts": counts, "rss": float(2 * sol.cost)})
             continue
         key = _effective(problem, sol.x, counts)
         if key in seen:
