@@ -227,7 +227,8 @@ def fit(problem, theta0, free, lower, upper, scale, target=None,
         accepted = False
         for _ in range(12):
             try:
-                step = np.linalg.solve(A + lam * np.diag(d), g)
+                step = _bounded_step(A + lam * np.diag(d), g, theta[free], lower[free],
+                                     upper[free])
             except np.linalg.LinAlgError:
                 lam *= 10.0
                 continue
@@ -252,6 +253,23 @@ def fit(problem, theta0, free, lower, upper, scale, target=None,
         jac = problem.jacobian(theta, free, f, scale)
     jac = problem.jacobian(theta, free, f, scale)
     return theta, f, jac, rss, it
+
+
+def _bounded_step(M: np.ndarray, g: np.ndarray, x: np.ndarray, lo: np.ndarray,
+                  hi: np.ndarray) -> np.ndarray:
+    """Solve ``M step = g`` with the entries held that sit on a bound and would leave it.
+
+    Projecting the free step instead (K pushed below 0 and clipped back) leaves the other
+    parameters the step they took for K's move, and the fit crept: 40 iterations each
+    lowering the cost by 0.1-0.2 s² on a quantised test-bed campaign (2026-11-28).
+    """
+    step = np.linalg.solve(M, g)
+    held = ((x <= lo) & (step < 0)) | ((x >= hi) & (step > 0))
+    if held.any() and not held.all():
+        keep = ~held
+        step = np.zeros_like(step)
+        step[keep] = np.linalg.solve(M[np.ix_(keep, keep)], g[keep])
+    return step
 
 
 def scan_band(problem, theta, s2, quantum):
