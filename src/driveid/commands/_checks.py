@@ -15,6 +15,8 @@ and :func:`check_allocation` once the sizes are known. A bad value is a click us
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 from typing import Any
 
 import click
@@ -31,6 +33,24 @@ FLOAT_LIMIT = 1e100
 
 #: Most bootstrap replicates a command takes (``--bootstrap``) [-].
 MAX_BOOTSTRAP = 10_000
+
+
+class FilePath(click.Path):
+    """A file path option: a trailing ``/`` is refused.
+
+    ``Path("f.png/")`` drops the slash, so ``--figure f.png/`` (a folder, by its spelling)
+    wrote the file ``f.png`` (fifth hostile campaign, 2026-11-28).
+    """
+
+    def __init__(self) -> None:
+        super().__init__(dir_okay=False, path_type=Path)
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> Any:
+        if isinstance(value, str) and value.endswith(("/", os.sep)):
+            self.fail(f"{value!r} ends in '/', so it names a folder; give a file name "
+                      "without the trailing slash", param, ctx)
+        return super().convert(value, param, ctx)
 
 
 class FiniteFloat(click.ParamType):

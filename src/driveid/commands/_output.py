@@ -20,6 +20,8 @@ from typing import Any
 
 import click
 
+from driveid.commands._checks import FilePath
+
 __all__ = ["OutputOptions", "output_options", "emit", "plot_of", "cli_text", "noise_words"]
 
 
@@ -62,10 +64,10 @@ def output_options(func: Callable[..., Any]) -> Callable[..., Any]:
         click.option("--series", "out_series", is_flag=True,
                      help="Include long time series in the JSON."),
         click.option("--figure", "out_figure", default=None,
-                     type=click.Path(dir_okay=False, path_type=Path),
+                     type=FilePath(),
                      help="Write a figure (PNG, PDF or SVG)."),
         click.option("--report", "out_report", default=None,
-                     type=click.Path(dir_okay=False, path_type=Path),
+                     type=FilePath(),
                      help="Write a self-contained HTML report."),
         click.option("--overwrite", "out_overwrite", is_flag=True,
                      help="Replace existing figure/report files."),

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import FilePath
 from driveid.errors import ConfigError, FileFormatError
 from driveid.io.consistency import load_json
 
@@ -130,9 +131,9 @@ def catalog_list_command(machine, axis, machine_type, status, as_json, catalog):
 
 @catalog_group.command("export")
 @click.option("--csv", "csv_path", default=None,
-              type=click.Path(dir_okay=False, path_type=Path), help="Write a CSV file.")
+              type=FilePath(), help="Write a CSV file.")
 @click.option("--parquet", "parquet_path", default=None,
-              type=click.Path(dir_okay=False, path_type=Path), help="Write a Parquet file.")
+              type=FilePath(), help="Write a Parquet file.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
 @catalog_option
 @clean_errors

@@ -9,7 +9,7 @@ import click
 import numpy as np
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import SEED, PositiveFloat
+from driveid.commands._checks import SEED, FilePath, PositiveFloat
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
 from driveid.errors import ConfigError, FileFormatError
@@ -66,11 +66,11 @@ def write_contour_csv(columns: dict, path: str | Path, *, overwrite: bool = Fals
 
 
 @click.command("contour")
-@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.argument("config", type=FilePath())
+@click.option("--out", type=FilePath(), required=True,
               help="CSV file to write: t, x_ref, y_ref, x, y, x_motor, y_motor, u_x, u_y.")
 @click.option("--compensate", "compensate", default=None,
-              type=click.Path(dir_okay=False, path_type=Path),
+              type=FilePath(),
               help="RESULT.json of 'driveid identify contour': add its friction "
                    "feed-forward and backlash compensation (also simulated without, and "
                    "with the friction 20 % low and high).")
@@ -150,7 +150,7 @@ def simulate_contour_command(config, out, compensate, seed, as_json, max_periods
 
 @click.command("contour")
 @click.argument("file", metavar="FILE[@T0:T1]")
-@click.option("--config", "config", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--config", "config", type=FilePath(),
               required=True, help="AXES.toml the test ran on (masses, links, controller, "
                                   "path).")
 @click.option("--min-speed", "min_speed", type=float, default=0.2, show_default=True,

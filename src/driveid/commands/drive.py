@@ -12,7 +12,7 @@ import numpy as np
 
 from driveid._json import to_jsonable
 from driveid.commands import clean_errors
-from driveid.commands._checks import PositiveFloat
+from driveid.commands._checks import FilePath, PositiveFloat
 from driveid.errors import ConfigError
 from driveid.io import ensure_writable
 from driveid.sim.config import RunOptions, load_drive_config, simulate_config
@@ -94,13 +94,13 @@ def write_drive_csv(result: DriveResult, path: str | Path, *, units: str = "rad"
 
 @click.command("drive")
 @click.argument("config", required=False,
-                type=click.Path(dir_okay=False, path_type=Path))
+                type=FilePath())
 @click.option("--preset", "preset_name", type=click.Choice(sorted(PRESETS)), default=None,
               help="Simulate a preset instead of a CONFIG file (released from x0 = 1 rad "
                    "or 0.1 m).")
 @click.option("--duration", type=float, default=None,
               help="Duration [s]; overrides the [run] table.")
-@click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--out", "out", type=FilePath(), required=True,
               help="CSV file to write: t, x1, v1, x2, v2 ..., command.")
 @click.option("--max-steps", type=PositiveFloat(max=1e18), default=float(DEFAULT_MAX_STEPS),
               show_default=True,

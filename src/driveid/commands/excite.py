@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import click
 import numpy as np
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import SEED
+from driveid.commands._checks import SEED, FilePath
 from driveid.io.safe_write import atomic_write_text
 from driveid.signal import excitation as _ex
 
@@ -56,7 +55,7 @@ def _need(kind: str, **values: object) -> None:
               help="Number of ± cycles (ramp).")
 @click.option("--units", type=click.Choice(["N·m", "N"]), default="N·m", show_default=True,
               help="Unit of u written in the header.")
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--out", type=FilePath(), required=True,
               help="CSV file to write (columns t,u).")
 @click.option("--overwrite", is_flag=True, help="Replace an existing --out file.")
 @clean_errors

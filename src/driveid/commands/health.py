@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import BoundedInt
+from driveid.commands._checks import BoundedInt, FilePath
 from driveid.commands._output import cli_text
 from driveid.commands.catalog import catalog_option, open_catalog
 from driveid.errors import ConfigError
@@ -23,7 +23,7 @@ def blueprint_group():
 
 @blueprint_group.command("make")
 @click.option("--machine-type", required=True, help="Machine type to describe.")
-@click.option("--out", required=True, type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--out", required=True, type=FilePath(),
               help="Blueprint JSON file to write.")
 @click.option("--first", type=BoundedInt(10**9, min=0), default=3, show_default=True,
               help="Use each axis's first N identifications (commissioning, healthy); 0: all.")
@@ -71,7 +71,7 @@ def blueprint_make_command(machine_type, out, first, until, parameters, min_axes
 @click.option("--baseline", type=BoundedInt(10**6, min=1), default=3, show_default=True,
               help="Identifications before the drift test (CUSUM) starts.")
 @click.option("--json", "as_json", is_flag=True, help="Print the assessment as JSON.")
-@click.option("--figure", default=None, type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--figure", default=None, type=FilePath(),
               help="Write a figure of every parameter's history and CUSUM.")
 @click.option("--overwrite", is_flag=True, help="Replace an existing figure.")
 @catalog_option

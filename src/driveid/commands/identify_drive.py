@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import math
 import re
-from pathlib import Path
 
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import NonNegativeFloat, PositiveFloat
+from driveid.commands._checks import FilePath, NonNegativeFloat, PositiveFloat
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options, split_window_spec
 from driveid.identify.drive._drive_model import DEFAULT_FIT_STEPS
@@ -91,7 +90,7 @@ def _pieces_line(info: dict) -> str:
 
 
 @click.command("drive")
-@click.argument("config", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("config", type=FilePath())
 @click.argument("files", nargs=-1, required=True, metavar="FILE[@T0:T1]...")
 @click.option("--estimate", "estimate", required=True,
               help="Parameters to estimate, comma-separated, named as in the TOML "
@@ -113,7 +112,7 @@ def _pieces_line(info: dict) -> str:
 @click.option("--max-steps", type=PositiveFloat(max=1e18), default=float(DEFAULT_FIT_STEPS),
               show_default=True,
               help="Budget of RK4 steps of the whole fit, estimated before it starts.")
-@click.option("--model-out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--model-out", type=FilePath(), default=None,
               help="Write the identified drive as TOML (simulate drive re-runs it).")
 @record_options
 @output_options
@@ -165,7 +164,7 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
 
 
 @click.command("subsystems")
-@click.argument("manifest", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("manifest", type=FilePath())
 @output_options
 @clean_errors
 def subsystems_command(manifest, output_opts):

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import FilePath
 from driveid.commands._output import emit, output_options
 from driveid.commands._record_options import record_options
 
@@ -20,7 +19,7 @@ _CHECK = click.option("--check-window", is_flag=True,
 
 _BACKBONE = click.option(
     "--backbone-figure", "backbone_figure", default=None,
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=FilePath(),
     help="Write the backbone K_eff(A) = J ω0(A)² with its ±2 s.e. band, fit K0 + K2 A² and "
          "verdict (PNG, PDF or SVG; --overwrite replaces a file).")
 

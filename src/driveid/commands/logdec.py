@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
 from driveid.commands import clean_errors
-from driveid.commands._checks import SEED, PositiveFloat, bootstrap_options, parse_quantisation
+from driveid.commands._checks import (
+    SEED,
+    FilePath,
+    PositiveFloat,
+    bootstrap_options,
+    parse_quantisation,
+)
 from driveid.commands._output import emit, noise_words, output_options
 from driveid.commands._record_options import record_options
 
@@ -45,7 +49,7 @@ __all__ = ["free_decay_command", "logdec_command"]
 @click.option("--units", type=click.Choice(["rad", "m"]), default="rad", show_default=True,
               help="Rotational (rad, N·m) or translational (m, N) record.")
 @click.option("--seed", type=SEED, default=None, help="Seed of the noise generator.")
-@click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+@click.option("--out", "out", type=FilePath(), required=True,
               help="Record file to write (.csv, .npz or .mat).")
 @click.option("--overwrite", is_flag=True, help="Overwrite an existing output file.")
 @click.option("--force", "force_alias", is_flag=True, hidden=True,

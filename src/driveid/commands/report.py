@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import FilePath
 
 __all__ = ["report_command"]
 
@@ -15,7 +16,7 @@ __all__ = ["report_command"]
 @click.argument("results", nargs=-1, required=True, metavar="RESULT.json...",
                 type=click.Path(exists=True, dir_okay=False, path_type=Path))
 @click.option("-o", "--out", "out", required=True,
-              type=click.Path(dir_okay=False, path_type=Path),
+              type=FilePath(),
               help="HTML file to write (one self-contained file).")
 @click.option("--title", default=None, help="Page title (default: the methods).")
 @click.option("--overwrite", is_flag=True, help="Replace an existing output file.")

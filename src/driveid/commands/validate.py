@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 
 from driveid.commands import clean_errors
+from driveid.commands._checks import FilePath
 from driveid.commands._output import cli_text
 from driveid.commands._record_options import RecordOptions, record_options
 from driveid.errors import FileFormatError, IdentificationError
@@ -113,7 +114,7 @@ def _read_as_estimated(files, estimate, record_opts: RecordOptions, result: Path
               help="Inertia J [kg·m² or kg] of a friction-map model (default: fitted to "
                    "each record).")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
-@click.option("--figure", type=click.Path(dir_okay=False, path_type=Path), default=None,
+@click.option("--figure", type=FilePath(), default=None,
               help="Write an overlay/residual figure (PNG, PDF or SVG).")
 @click.option("--overwrite", is_flag=True, help="Replace an existing figure.")
 @record_options

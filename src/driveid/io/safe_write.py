@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import stat
 import tempfile
 import threading
 from collections.abc import Callable, Iterator
@@ -69,10 +70,26 @@ def check_destination(path: str | Path, *, overwrite: bool = False,
         If ``path`` is a folder (a real one; a link to a folder is replaced under
         ``overwrite``).
     """
+    text = os.fspath(path)
+    if text == "-":
+        raise OverwriteError(
+            "'-' names no file here (driveid does not write this output to standard "
+            "output); give a file name such as out.html")
+    if text.endswith(("/", os.sep)) and not Path(text).is_dir():
+        raise IsADirectoryError(
+            f"{text} ends in '/', so it names a folder; give a file name without the "
+            "trailing slash")
     path = Path(path)
     if path.is_dir() and not path.is_symlink():
         raise IsADirectoryError(
             f"{path} is a folder; give a file name (e.g. {path / 'out.csv'})")
+    if (os.path.lexists(path) and not path.is_symlink()
+            and not stat.S_ISREG(os.lstat(path).st_mode)):
+        # a device, pipe or socket: the rename would replace the node itself (/dev/null,
+        # /dev/full as root, found by the fifth hostile campaign), whatever --overwrite says
+        raise OverwriteError(
+            f"{path} is not a regular file (a device, pipe or socket); driveid writes "
+            "regular files only: choose another name")
     if os.path.lexists(path) and not overwrite:
         link = path.is_symlink()
         raise OverwriteError(
@@ -127,14 +144,21 @@ def atomic_open(path: str | Path, mode: str = "w", *, overwrite: bool = False,
         raise ValueError(f"mode must be 'w' or 'wb'; got {mode!r}")
     path = check_destination(path, overwrite=overwrite, option=option)
     folder = path.parent
-    folder.mkdir(parents=True, exist_ok=True)
     tmp: Path | None = None
     try:
         with _interrupts_held():
-            # mkstemp opens with O_CREAT | O_EXCL (and O_NOFOLLOW where available): a planted
-            # symlink at the temporary name makes it pick another name, never write through it
-            fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.",
-                                            suffix=TEMP_SUFFIX + path.suffix)
+            try:
+                folder.mkdir(parents=True, exist_ok=True)
+                # mkstemp opens with O_CREAT | O_EXCL (and O_NOFOLLOW where available): a
+                # planted symlink at the temporary name makes it pick another name, never
+                # write through it
+                fd, tmp_name = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.",
+                                                suffix=TEMP_SUFFIX + path.suffix)
+            except PermissionError:
+                # the raw message named the hidden temporary file, not the user's path
+                raise PermissionError(
+                    f"cannot write {path}: the folder {folder.resolve()} is not writable; "
+                    "choose another folder") from None
             tmp = Path(tmp_name)
         kwargs: dict[str, Any] = ({} if "b" in mode else
                                   {"encoding": encoding, "newline": newline})

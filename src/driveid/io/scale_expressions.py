@@ -53,18 +53,28 @@ def parse_scale(text: str | float, scalars: Mapping[str, float] | None = None) -
         try:
             tree = ast.parse(str(text).strip(), mode="eval")
             value = float(_evaluate(tree.body, scalars))
-        except (SyntaxError, ValueError, ZeroDivisionError, KeyError, TypeError) as exc:
+        except (SyntaxError, ValueError, ZeroDivisionError, KeyError, TypeError,
+                OverflowError) as exc:
             names = f"; scalar variables of the file: {sorted(scalars)}" if scalars else ""
+            digits = "Exceeds the limit" in str(exc)  # Python's 4300-digit integer limit
             why = "division by zero" if isinstance(exc, ZeroDivisionError) else (
+                "a number beyond the floating-point range (about 1.8e308)"
+                if isinstance(exc, OverflowError) or digits else
                 "a syntax error" if isinstance(exc, SyntaxError) else
                 "a name that is no scalar variable of the file or an operation other than "
                 "+ - * /")
             raise FileFormatError(
-                f"scale {text!r} is not a number or an expression of numbers with + - * / "
+                f"scale {_short(text)} is not a number or an expression of numbers with + - * / "
                 f"and parentheses, e.g. 0.02/60{names}; it has {why}") from None
     if not (math.isfinite(value) and value != 0.0):
-        raise FileFormatError(f"a scale must be finite and non-zero; got {text!r}")
+        raise FileFormatError(f"a scale must be finite and non-zero; got {_short(text)}")
     return value
+
+
+def _short(text: object) -> str:
+    """Return the user's text for a message, cut to 60 characters (5000 digits were echoed)."""
+    shown = repr(text)
+    return shown if len(shown) <= 60 else f"{shown[:57]}...'"
 
 
 def _evaluate(node: ast.AST, scalars: Mapping[str, float]) -> float:

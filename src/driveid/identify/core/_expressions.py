@@ -83,6 +83,10 @@ def parse_expression(text: str) -> ast.Expression:
             continue
         if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
                 and not isinstance(node.value, bool):
+            if isinstance(node.value, int) and abs(node.value) > 1e308:  # float() overflows
+                raise ParameterError(
+                    f"expression {text[:60]!r} holds a number beyond the floating-point range "
+                    "(about 1.8e308); write it in units that keep it finite")
             continue
         if isinstance(node, ast.Name) and (node.id in EXPRESSION_NAMES
                                            or node.id in _CONSTANTS

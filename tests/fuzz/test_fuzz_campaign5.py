@@ -1,0 +1,68 @@
+"""Issue 28, fifth hostile campaign (2026-11-28): shapes the first four did not try.
+
+Each once ended in exit 70, a silently wrong exit 0 or a write the user did not ask for:
+a 400-digit integer in ``--scale`` and ``--regressor`` (float overflow, exit 70),
+``--overwrite`` onto a device node (the rename replaced ``/dev/full`` itself, as root),
+``-o -`` (a file named ``-``), ``--figure f.png/`` (the slash dropped, a file written) and a
+folder that is not writable (a raw errno naming the hidden temporary file).
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+
+import pytest
+
+from tests.fuzz.test_fuzz_campaign4 import _motion_csv
+
+BIG = "9" * 400
+
+
+# --- once exit 70 -------------------------------------------------------------------------
+
+def test_a_400_digit_scale_is_one_line(run, good_record):
+    run("inspect", str(good_record), "--scale", f"x={BIG}").assert_clean_error(
+        "beyond the floating-point range")
+
+
+def test_a_400_digit_regressor_constant_is_one_line(run, tmp_path):
+    _motion_csv(tmp_path / "motion.csv")
+    out = run("identify", "idim", "motion.csv", "--regressor", f"{BIG}*x")
+    out.assert_no_traceback()  # idim's 'note: --cutoff-hz' line comes first
+    assert out.code == 2 and "beyond the floating-point range" in out.lines[-1], out.describe()
+
+
+# --- once a write the user did not ask for ------------------------------------------------
+
+def _excite(run, out, *extra):
+    return run("excite", "sine", "--frequency", "1", "--duration", "1", "--amplitude", "1",
+               "--out", out, *extra)
+
+
+def test_overwrite_never_replaces_a_fifo_or_device(run, tmp_path):
+    os.mkfifo(tmp_path / "pipe.csv")
+    _excite(run, "pipe.csv", "--overwrite").assert_clean_error("not a regular file")
+    assert stat.S_ISFIFO(os.lstat(tmp_path / "pipe.csv").st_mode)
+    if os.geteuid() == 0:  # only root can make a device node (the campaign ran as root)
+        os.mknod(tmp_path / "null.csv", 0o666 | stat.S_IFCHR, os.makedev(1, 3))
+        _excite(run, "null.csv", "--overwrite").assert_clean_error("not a regular file")
+        assert stat.S_ISCHR(os.lstat(tmp_path / "null.csv").st_mode)
+
+
+def test_a_dash_or_a_trailing_slash_names_no_file(run, tmp_path, result_json):
+    run("report", str(result_json), "-o", "-").assert_clean_error("names no file")
+    _excite(run, "f.csv/").assert_no_traceback()
+    assert not (tmp_path / "f.csv").exists() and not (tmp_path / "-").exists()
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into a read-only folder")
+def test_a_read_only_folder_is_named_not_the_temporary_file(run, tmp_path):
+    (tmp_path / "ro").mkdir()
+    (tmp_path / "ro").chmod(0o500)
+    try:
+        out = _excite(run, "ro/u.csv")
+        out.assert_clean_error("is not writable")
+        assert ".part" not in out.stderr
+    finally:
+        (tmp_path / "ro").chmod(0o700)
