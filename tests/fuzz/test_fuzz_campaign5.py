@@ -66,3 +66,23 @@ def test_a_read_only_folder_is_named_not_the_temporary_file(run, tmp_path):
         assert ".part" not in out.stderr
     finally:
         (tmp_path / "ro").chmod(0o700)
+
+
+# --- once a silently wrong exit 0 ---------------------------------------------------------
+
+def test_a_growing_oscillation_is_said_to_grow(run, tmp_path, good_arrays):
+    # the good decay with its time reversed: the damping (held >= 0) came back +0.80 ± 4.1
+    # with 'ill-determined' warnings only
+    t, x = good_arrays["t"], good_arrays["x"][::-1]
+    (tmp_path / "grow.csv").write_text("t [s],x [rad]\n" + "".join(
+        f"{a:.6f},{b:.9g}\n" for a, b in zip(t, x, strict=True)))
+    out = run("identify", "logdec", "grow.csv", "--mass", "1")
+    out.assert_ok()
+    assert any("oscillation grows" in line for line in out.lines), out.describe()
+    # a decay behind a flat lead-in (its largest fifth is not the last) is not said to grow
+    lead = len(t) // 3
+    (tmp_path / "lead.csv").write_text("t [s],x [rad]\n" + "".join(
+        f"{k * 1e-3:.6f},{b:.9g}\n" for k, b in
+        enumerate([good_arrays["x"][0]] * lead + list(good_arrays["x"]))))
+    out = run("identify", "logdec", "lead.csv", "--mass", "1")
+    assert not any("grows" in line for line in out.lines), out.describe()

@@ -20,7 +20,8 @@ from driveid.identify.free_decay._free_decay_structures import (
     structure_model,
 )
 
-__all__ = ["adequacy_of", "apply_verdict", "physics_warnings", "slow_noise", "structure_fitted"]
+__all__ = ["adequacy_of", "apply_verdict", "growth_warnings", "physics_warnings", "slow_noise",
+           "structure_fitted"]
 
 #: AR order from which a non-white prewhitened residual may be the noise spectrum itself [-].
 HIGH_ORDER = 20
@@ -177,6 +178,45 @@ def physics_warnings(params, at_bound, x_ref, u, zeta_bound):
             "zero and the spring zero looks the same (not identifiable from a free decay) - "
             "pass the spring zero with x_ref (CLI: --x-ref)")
     return warnings
+
+
+def growth_warnings(ys):
+    """Warn for each record whose oscillation grows: no passive free decay does.
+
+    The amplitude of a window is half its 2.5-97.5 % range (a drift inside a fifth of the
+    record barely moves it); growth is a last fifth with the largest amplitude of the five,
+    1.5 times the first's (a flat lead-in before the release peaks in a middle fifth). The
+    fit holds the
+    damping at >= 0, so it cannot follow such a record: a reversed decay of the fifth
+    hostile campaign (x17) came back with c_mean = +0.80 ± 4.1 and only 'ill-determined'
+    warnings.
+
+    Parameters
+    ----------
+    ys : list of ndarray
+        Each record's positions [m or rad].
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    for r, y in enumerate(ys):
+        fifth = y.size // 5
+        if fifth < 8:
+            continue
+        amps = [0.5 * float(np.subtract(*np.percentile(y[k * fifth:(k + 1) * fifth],
+                                                       [97.5, 2.5]))) for k in range(5)]
+        first, last = amps[0], amps[-1]
+        if last > 1.5 * first and last >= max(amps):
+            which = f"record {r + 1}'s" if len(ys) > 1 else "the record's"
+            out.append(
+                f"{which} oscillation grows ({last / max(first, 1e-300):.3g}x from its first "
+                "to its last fifth): a passive free decay only decays, and this fit's damping "
+                "is held >= 0, so its numbers do not describe the record; it is driven or "
+                "unstable (negative damping from a feedback loop), or its time runs "
+                "backwards (driveid identify hilbert shows the damping against time)")
+    return out
 
 
 def adequacy_of(verdict, problem, p, covariance_kind):

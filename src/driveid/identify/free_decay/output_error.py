@@ -85,6 +85,7 @@ from driveid.identify.free_decay._free_decay_structures import (
 from driveid.identify.free_decay._free_decay_verdict import (
     adequacy_of,
     apply_verdict,
+    growth_warnings,
     physics_warnings,
     structure_fitted,
 )
@@ -675,6 +676,7 @@ def _estimate(records, problem, p, cov, chosen, candidates, weights, s2, quantum
     if any(mid_swing):
         warnings.append("a record starts mid-swing: its release is the velocity zero before "
                         "the first sample (extrapolated)")
+    warnings += growth_warnings(problem.y)
     adequacy, adequacy_warnings = adequacy_of(verdict, problem, p, covariance_kind)
     warnings += adequacy_warnings
     if richer is not None:
