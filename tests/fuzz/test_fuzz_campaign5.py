@@ -9,11 +9,13 @@ folder that is not writable (a raw errno naming the hidden temporary file).
 
 from __future__ import annotations
 
+import json
 import os
 import stat
 
 import pytest
 
+from tests.fuzz.test_fuzz_campaign3 import _DRIVE_TOML
 from tests.fuzz.test_fuzz_campaign4 import _motion_csv
 
 BIG = "9" * 400
@@ -86,3 +88,15 @@ def test_a_growing_oscillation_is_said_to_grow(run, tmp_path, good_arrays):
         enumerate([good_arrays["x"][0]] * lead + list(good_arrays["x"]))))
     out = run("identify", "logdec", "lead.csv", "--mass", "1")
     assert not any("grows" in line for line in out.lines), out.describe()
+
+
+def test_a_drive_fit_records_its_input_files(run, tmp_path):
+    # 'inputs' was [] for every identify drive result: report and catalog lost the file,
+    # its SHA-256 and the columns read
+    (tmp_path / "c.toml").write_text(_DRIVE_TOML)
+    run("simulate", "drive", "c.toml", "--out", "d.csv").assert_ok()
+    out = run("identify", "drive", "c.toml", "d.csv", "--estimate", "body1.J", "--json")
+    out.assert_ok()
+    (entry,) = json.loads(out.stdout)["inputs"]
+    assert entry["path"].endswith("d.csv") and len(entry["sha256"]) == 64
+    assert entry["columns"]["x1"] == "x1" and entry["units"]["x1"] in ("rad", "m")

@@ -155,7 +155,7 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
     if model_out is not None:
         atomic_write_text(model_out, est.diagnostics["model_toml"],
                           overwrite=output_opts.overwrite)
-    emit(est, output_opts,
+    emit(est, output_opts, records=records,
          header=f"method: {est.method}   samples: {est.diagnostics['n_samples']}   "
                 f"simulations: {est.diagnostics['n_simulations']}\n"
                 + _pieces_line(est.diagnostics["pieces"]))

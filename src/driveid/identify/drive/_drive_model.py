@@ -108,6 +108,21 @@ class DriveRecord:
         """Sampling rate [Hz]."""
         return float((self.t.size - 1) / (self.t[-1] - self.t[0]))
 
+    @property
+    def n(self) -> int:
+        """Number of samples [-]."""
+        return int(self.t.size)
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """The record's columns: ``t``, the channels and ``u`` when present."""
+        return ("t", *self.channels, *(("u",) if self.u is not None else ()))
+
+    @property
+    def units(self) -> dict[str, str]:
+        """Unit of each column as read (``meta["units"]``; ``t`` in s) [-]."""
+        return {"t": "s", **dict(self.meta.get("units") or {})}
+
     @classmethod
     def from_result(cls, result: Any, channels: Sequence[str] = ("x1",), *,
                     input_body: int | None = 0) -> DriveRecord:

@@ -95,6 +95,7 @@ def read_drive_record(path: str | Path, *, read_kwargs: Mapping[str, Any] | None
                               f"x{n_bodies}); name one with --channel x1=COLUMN; got "
                               f"columns {sorted(names)}")
     chans, t, u, meta = {}, None, None, {}
+    used, units = {}, {}  # provenance of every channel (result "inputs", issue 28)
     for i in bodies:
         cols = {}
         if time_column is not None:
@@ -110,10 +111,20 @@ def read_drive_record(path: str | Path, *, read_kwargs: Mapping[str, Any] | None
         rec = read_record(path, **{**kwargs, "columns": cols})
         t, meta = rec.t, dict(rec.meta)
         chans[f"x{i}"] = rec.x
+        read_as = dict(meta.get("columns_used") or {})
+        for kind in ("t", "x", "v", "u"):
+            name = f"{kind}{i}" if kind in ("x", "v") else kind
+            if kind in read_as and (kind != "v" or "v" in cols) and (kind != "u" or ucol):
+                used[name] = read_as[kind]
+                if kind in rec.units:
+                    units[name] = rec.units[kind]
         if rec.v is not None and "v" in cols:
             chans[f"v{i}"] = rec.v
         if rec.u is not None and ucol is not None:
             u = rec.u
+    reading = {k: v for k, v in dict(meta.get("reading") or {}).items() if k != "columns"}
+    meta = {**{k: v for k, v in meta.items() if k != "reading"}, "columns_used": used,
+            "units": units, **({"reading": reading} if reading else {})}
     t, chans, u, meta = _uniform_clock(path, t, chans, u, meta, tolerance)
     return DriveRecord(t=t, channels=chans, u=u, meta=meta)
 
