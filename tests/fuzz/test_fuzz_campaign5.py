@@ -100,3 +100,18 @@ def test_a_drive_fit_records_its_input_files(run, tmp_path):
     (entry,) = json.loads(out.stdout)["inputs"]
     assert entry["path"].endswith("d.csv") and len(entry["sha256"]) == 64
     assert entry["columns"]["x1"] == "x1" and entry["units"]["x1"] in ("rad", "m")
+
+
+@pytest.mark.parametrize("gains, fix", [("P = -5.0\nD = 0.1", "give P > 0"),
+                                        ("P = 5000.0\nD = 0.0", "lower P")])
+def test_an_unstable_feedback_loop_is_said_to_diverge(run, tmp_path, gains, fix):
+    # it reached |x| = 8e176 with nothing on stderr
+    (tmp_path / "c.toml").write_text(
+        "[[body]]\nJ = 0.01\nfk_mean = 0.05\n[feedback]\n" + gains +
+        "\ndelay = 0.05\n[run]\nduration = 3.0\nx0 = [1.0]\n")
+    out = run("simulate", "drive", "c.toml", "--out", "o.csv")
+    out.assert_ok()
+    assert any("loop is unstable" in line and fix in line for line in out.lines), \
+        out.describe()
+    out = run("simulate", "drive", "--preset", "testbed-a", "--out", "p.csv")
+    assert not any("unstable" in line for line in out.lines), out.describe()

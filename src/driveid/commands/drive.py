@@ -162,5 +162,32 @@ def drive_command(config, preset_name, duration, max_steps, out, overwrite, forc
         click.echo(f"warning: negative viscous friction on {', '.join(active)} feeds energy "
                    f"in: the motion reaches |x| = {reach:.3g} (a self-excited drive; check "
                    "the config's signs)", err=True)
+    _warn_unstable_loop(params, result)
     if result.aborted:
         click.echo(f"aborted: {result.abort_reason}")
+
+
+def _warn_unstable_loop(params, result) -> None:
+    """Warn when the delayed-PD loop diverges: its error grows tenfold over the run.
+
+    A stable loop holds the feedback body near its reference; P = 5000 with a 50 ms delay
+    (or P < 0) reached |x| = 8e176 with nothing on stderr (fifth hostile campaign).
+    """
+    fb = params.feedback
+    if fb is None:
+        return
+    err = np.asarray(result.x[fb.body], float) - fb.reference
+    fifth = err.size // 5
+    if fifth < 2:
+        return
+    first = float(np.nanmax(np.abs(err[:fifth]), initial=0.0))
+    last = np.abs(err[-fifth:])
+    reach = float(np.max(last)) if np.all(np.isfinite(last)) else math.inf
+    if reach > 10.0 * first:
+        fix = ("P < 0 pushes the body away from the reference: give P > 0" if fb.P < 0 else
+               "lower P or the delay, or raise D (the delay adds a negative damping of about "
+               "P·delay)")
+        click.echo(f"warning: the feedback loop is unstable: body {fb.body + 1}'s distance "
+                   f"from the reference grows from {abs(float(err[0])):.3g} at the start to "
+                   f"{reach:.3g} (P = {fb.P:g}, D = {fb.D:g}, delay = {fb.delay:g} s); {fix}",
+                   err=True)
