@@ -115,3 +115,19 @@ def test_an_unstable_feedback_loop_is_said_to_diverge(run, tmp_path, gains, fix)
         out.describe()
     out = run("simulate", "drive", "--preset", "testbed-a", "--out", "p.csv")
     assert not any("unstable" in line for line in out.lines), out.describe()
+
+
+def test_a_preset_named_in_a_toml_is_released_as_the_option_does(run, tmp_path):
+    # 'preset = "testbed-a"' alone wrote a record of zeros; the example TOML calls it
+    # equivalent to --preset testbed-a (released from 1 rad)
+    (tmp_path / "p.toml").write_text('preset = "testbed-a"\n')
+    run("simulate", "drive", "p.toml", "--out", "a.csv").assert_ok()
+    run("simulate", "drive", "--preset", "testbed-a", "--out", "b.csv").assert_ok()
+
+    def rows(name):
+        return [r for r in (tmp_path / name).read_text().splitlines() if not r.startswith("#")]
+
+    assert rows("a.csv") == rows("b.csv") and float(rows("a.csv")[1].split(",")[1]) == 1.0
+    (tmp_path / "rest.toml").write_text("[[body]]\nJ = 1.0\nfk_mean = 0.1\n")
+    out = run("simulate", "drive", "rest.toml", "--out", "c.csv")
+    assert any("will be at rest" in line for line in out.lines), out.describe()

@@ -117,10 +117,11 @@ def drive_command(config, preset_name, duration, max_steps, out, overwrite, forc
     if config is not None:
         params, options = load_drive_config(config)
         source = str(config)
+        options = _start_a_resting_run(config, params, options)
     else:
         params = preset(preset_name)
         units = preset_units(preset_name)
-        options = RunOptions(units=units, x0=(1.0 if units == "rad" else 0.1,) * params.n_bodies)
+        options = RunOptions(units=units, x0=_release(units, params.n_bodies))
         source = f"preset {preset_name}"
     if duration is not None:
         try:
@@ -191,3 +192,32 @@ def _warn_unstable_loop(params, result) -> None:
                    f"from the reference grows from {abs(float(err[0])):.3g} at the start to "
                    f"{reach:.3g} (P = {fb.P:g}, D = {fb.D:g}, delay = {fb.delay:g} s); {fix}",
                    err=True)
+
+
+def _release(units: str, n_bodies: int) -> tuple[float, ...]:
+    """Return the release of a preset run [rad or m]: 1 rad or 0.1 m for every body."""
+    return (1.0 if units == "rad" else 0.1,) * n_bodies
+
+
+def _start_a_resting_run(config, params, options):
+    """Release a preset named in a TOML as ``--preset`` does, or warn that nothing moves.
+
+    ``preset = "testbed-a"`` alone wrote a record of zeros, while the example TOML calls it
+    equivalent to ``--preset testbed-a`` (released from 1 rad; fifth hostile campaign).
+    ``identify drive`` keeps a missing x0 free (estimated), so this is the command's choice.
+    """
+    if options.x0 is not None or options.v0 is not None or options.torque is not None:
+        return options
+    if params.feedback is not None and params.feedback.reference != 0.0:
+        return options
+    from driveid.sim.config import read_toml
+
+    if "preset" in read_toml(config, "drive config"):
+        x0 = _release(options.units, params.n_bodies)
+        click.echo(f"note: [run] sets no x0, v0 or torque: released from x0 = {x0[0]:g} "
+                   f"{options.units}, as --preset does", err=True)
+        return dataclasses.replace(options, x0=x0)
+    click.echo("warning: [run] sets no x0, v0 or torque and nothing else moves the drive: "
+               "the record will be at rest; set [run] x0 = [...] (initial positions) or "
+               "torque = [...]", err=True)
+    return options
