@@ -10,6 +10,7 @@ folder that is not writable (a raw errno naming the hidden temporary file).
 from __future__ import annotations
 
 import json
+import math
 import os
 import stat
 
@@ -131,3 +132,31 @@ def test_a_preset_named_in_a_toml_is_released_as_the_option_does(run, tmp_path):
     (tmp_path / "rest.toml").write_text("[[body]]\nJ = 1.0\nfk_mean = 0.1\n")
     out = run("simulate", "drive", "rest.toml", "--out", "c.csv")
     assert any("will be at rest" in line for line in out.lines), out.describe()
+
+
+def _decay_csv(path, header, scale=1.0):
+    t = [k * 5e-3 for k in range(1200)]
+    x = [scale * 10 * math.exp(-0.15 * s) * math.cos(4 * s) for s in t]
+    path.write_text(header + "\n" + "".join(f"{a:.6f},{b:.9g},0\n"
+                                           for a, b in zip(t, x, strict=True)))
+    return path
+
+
+def test_rotation_and_translation_are_not_mixed(run, tmp_path):
+    # x [mm] beside u [N·m] read the torque as a force in N; a rad file fitted with an mm
+    # file took the units of whichever came first
+    _decay_csv(tmp_path / "mixed.csv", "t [s],x [mm],u [N*m]", 1e3)
+    run("identify", "logdec", "mixed.csv", "--mass", "1").assert_clean_error(
+        "one body moves either in rad with n·m or in m with n")
+    _decay_csv(tmp_path / "rad.csv", "t [s],x [rad],u [N*m]")
+    _decay_csv(tmp_path / "mm.csv", "t [s],x [mm],u [N]", 1e3)
+    run("identify", "logdec", "rad.csv", "mm.csv", "--mass", "1").assert_clean_error(
+        "mix rotation and translation")
+
+
+def test_disjoint_windows_of_one_file_are_not_duplicates(run, tmp_path):
+    _decay_csv(tmp_path / "d.csv", "t [s],x [rad],u [N*m]")
+    out = run("identify", "logdec", "d.csv@0:3", "d.csv@3:6", "--mass", "1")
+    assert out.code == 0 and not any("more than once" in ln for ln in out.lines), out.describe()
+    out = run("identify", "logdec", "d.csv@0:4", "d.csv@3:6", "--mass", "1")
+    assert any("more than once" in ln for ln in out.lines), out.describe()

@@ -149,6 +149,7 @@ class RecordOptions:
         from driveid.io.consistency import warn_duplicates
 
         records = [self.read(spec) for spec in specs]
+        _one_kind_of_motion(records)
         warn_duplicates(records)
         return records
 
@@ -191,6 +192,23 @@ class RecordOptions:
 #: samples overflow or underflow in the estimators: ×1e300 and ×1e-310 once ended in exit 70.
 _MAGNITUDE_LIMIT = 1e100
 _COLUMN_WORDS = {"t": "time", "x": "position", "v": "velocity", "u": "force"}
+
+
+def _one_kind_of_motion(records: Sequence[Any]) -> None:
+    """Refuse records of one fit that mix rotation (rad) and translation (m).
+
+    A rad file fitted with an mm file was accepted, the result's units set by whichever
+    came first (fifth hostile campaign).
+    """
+    from driveid.errors import FileFormatError
+
+    units = {r.units.get("x") for r in records}
+    if len(units) > 1:
+        listed = ", ".join(f"{Path(str(r.meta.get('source') or i + 1)).name} in "
+                           f"{r.units.get('x')}" for i, r in enumerate(records))
+        raise FileFormatError(
+            f"the records of one fit mix rotation and translation ({listed}); fit each axis "
+            "on its own, or state the unit that is wrong with --unit x=UNIT")
 
 
 def _check_magnitudes(record: Any, path: Path) -> None:

@@ -141,13 +141,20 @@ def duplicate_groups(records: Sequence[Any]) -> list[list[int]]:
         Indices of each group of two or more duplicates, in order.
     """
     by_key: dict[str, list[int]] = {}
+    spans: dict[str, list[tuple[int, float, float]]] = {}
     for i, rec in enumerate(records):
         source = (getattr(rec, "meta", {}) or {}).get("source")
-        keys = {f"data:{record_digest(rec)}"}
+        by_key.setdefault(f"data:{record_digest(rec)}", []).append(i)
         if source:
-            keys.add(f"file:{os.path.realpath(str(source))}")
-        for key in keys:
-            by_key.setdefault(key, []).append(i)
+            spans.setdefault(os.path.realpath(str(source)), []).append(
+                (i, float(rec.t[0]), float(rec.t[-1])))
+    # one file twice counts only where the windows overlap: file@0:0.5 and file@0.5:1.5 are
+    # different data (a false warning, fifth hostile campaign)
+    for path, members in spans.items():
+        for a, (i, lo_i, hi_i) in enumerate(members):
+            overlapping = [j for j, lo_j, hi_j in members[a + 1:] if lo_j < hi_i and lo_i < hi_j]
+            if overlapping:
+                by_key.setdefault(f"file:{path}:{i}", []).extend([i, *overlapping])
     groups: list[list[int]] = []
     seen: set[tuple[int, ...]] = set()
     for members in by_key.values():

@@ -741,7 +741,18 @@ def _complete_units(si: dict[str, str], scaled: Mapping[str, float]) -> None:
 
 
 def _check_consistent(si: Mapping[str, str], in_file: Mapping[str, str], source: str) -> None:
-    x_unit, v_unit = si.get("x"), si.get("v")
+    x_unit, v_unit, u_unit = si.get("x"), si.get("v"), si.get("u")
+    if x_unit in ("m", "rad") and u_unit in ("N", "N·m") and \
+            (x_unit == "m") != (u_unit == "N"):
+        # x [mm] beside u [N·m] was read as a force in N (fifth hostile campaign)
+        rotary = x_unit == "rad"
+        raise FileFormatError(
+            f"{source}: position is in {in_file.get('x', x_unit)} ({x_unit}) but the "
+            f"{'force' if rotary else 'torque'} in {in_file.get('u', u_unit)} ({u_unit}): "
+            f"one body moves either in rad with N·m or in m with N; give the transmission "
+            f"as a scale, e.g. --scale u=2*3.14159/0.02 --unit u=N for the torque of a 20 "
+            "mm/rev screw, choose the force column of the same axis with --force COL, or "
+            "ignore it with --force none")
     if x_unit and v_unit and v_unit.split("/")[0] != x_unit:
         raise FileFormatError(
             f"{source}: position is in {in_file.get('x', x_unit)} ({x_unit}) but velocity in "
