@@ -160,3 +160,14 @@ def test_disjoint_windows_of_one_file_are_not_duplicates(run, tmp_path):
     assert out.code == 0 and not any("more than once" in ln for ln in out.lines), out.describe()
     out = run("identify", "logdec", "d.csv@0:4", "d.csv@3:6", "--mass", "1")
     assert any("more than once" in ln for ln in out.lines), out.describe()
+
+
+def test_a_release_that_sticks_at_once_is_no_corrupted_burst(run):
+    # the simulator's own half swing before a long noisy rest: its steps are 20x the
+    # noise's, so the whole swing was called a corrupted burst and refused
+    run("simulate", "free-decay", "--fk-mean", "6", "--fk-delta", "0", "--x0", "1",
+        "--duration", "10", "--rate", "200", "--noise", "1e-4", "--seed", "4",
+        "--out", "h.csv").assert_ok()
+    out = run("identify", "logdec", "h.csv", "--mass", "1")
+    out.assert_clean_error("half cycle(s) of motion before it rests")
+    assert "corrupted" not in out.stderr

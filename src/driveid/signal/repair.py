@@ -170,7 +170,8 @@ def find_corrupted_bursts(x: np.ndarray, *, factor: float = 20.0) -> list[tuple[
     -----
     A corrupted burst (App. B.3.1: 10-100 ms of garbage) enters and leaves with jumps of the
     order of the signal's range, while a physical position changes by at most ``v_max dt``
-    per sample. Jumps closer together than 200 samples are merged into one burst. Memory:
+    per sample; a jump must also exceed 5 % of the signal's span (max - min). Jumps closer
+    together than 200 samples are merged into one burst. Memory:
     the non-zero step sizes (at most 8 B a sample, for the quantile), filled and scanned
     in blocks.
 
@@ -198,6 +199,12 @@ def find_corrupted_bursts(x: np.ndarray, *, factor: float = 20.0) -> list[tuple[
     # motion look like a jump (partitioned in place: the scratch array is ours)
     threshold = factor * float(np.quantile(moving, 0.9, overwrite_input=True))
     del moving
+    # and a twentieth of the signal's span: a burst enters with a jump of the order of the
+    # range, while a short swing before a long noisy rest has steps 20x the noise's (the
+    # simulator's own stick after half a swing was refused, fifth hostile campaign)
+    finite = x[np.isfinite(x)]
+    if finite.size:
+        threshold = max(threshold, 0.05 * float(np.max(finite) - np.min(finite)))
     jumps = np.concatenate([np.flatnonzero(np.abs(step) > threshold) + s
                             for s, step in _interval_blocks(x)])
     if jumps.size == 0:

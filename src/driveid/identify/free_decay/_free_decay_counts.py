@@ -126,3 +126,31 @@ def _candidates(problem, p_best, counts0, settled=None, max_fits=30):
         seen.add(key)
         out.append({"p": sol.x, "counts": counts, "rss": float(2 * sol.cost), "sol": sol})
     return out
+
+
+def visible_half_cycles(y, factor=10.0):
+    """Count the half cycles a record shows: reversals by more than ``factor`` x the noise.
+
+    The noise is the robust spread of the second differences (white noise: sd·√6); the
+    hysteresis is also at least 0.1 % of the span. Used only to word a refusal.
+    """
+    y = np.asarray(y, float)
+    if y.size < 4:
+        return 0
+    d2 = np.diff(y, 2)
+    noise = 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / np.sqrt(6.0)
+    span = float(np.max(y) - np.min(y))
+    h = max(factor * noise, 1e-3 * span)
+    if not h > 0:
+        return 0
+    count, direction, extreme, hi, lo = 0, 0, y[0], y[0], y[0]
+    for value in y[1:]:
+        if direction == 0:  # before the first move: from the highest or lowest so far
+            hi, lo = max(hi, value), min(lo, value)
+            if value < hi - h or value > lo + h:
+                direction, extreme, count = (-1 if value < hi - h else 1), value, 1
+        elif direction * (value - extreme) > 0:
+            extreme = value
+        elif direction * (extreme - value) > h:  # a reversal: the next half cycle
+            direction, extreme, count = -direction, value, count + 1
+    return count

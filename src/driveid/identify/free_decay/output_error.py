@@ -75,6 +75,7 @@ from driveid.identify.free_decay._free_decay_counts import (
     _forbidden,
     _refine,
     _settle,
+    visible_half_cycles,
 )
 from driveid.identify.free_decay._free_decay_starts import peak_start, sample_starts
 from driveid.identify.free_decay._free_decay_structures import (
@@ -538,6 +539,13 @@ def estimate_output_error(
         if coarse is not problem:
             candidates = _refine(problem, coarse, candidates)
         if not candidates:
+            shown = max(visible_half_cycles(y_r) for y_r in problem.y)
+            if shown < 4:  # a release that sticks at once (fifth hostile campaign)
+                raise IdentificationError(
+                    f"the record shows {shown} half cycle(s) of motion before it rests; a "
+                    "free-decay fit needs four or more: release from further out (the "
+                    "friction band is a large share of this release), or measure the "
+                    "friction with a ramp (driveid identify breakaway)")
             raise IdentificationError(
                 "no stop count is consistent with the kinetic friction of the fit; the record "
                 "is not a free decay of this model (check for drift, offsets or forcing)")
