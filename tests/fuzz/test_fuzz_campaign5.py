@@ -171,3 +171,20 @@ def test_a_release_that_sticks_at_once_is_no_corrupted_burst(run):
     out = run("identify", "logdec", "h.csv", "--mass", "1")
     out.assert_clean_error("half cycle(s) of motion before it rests")
     assert "corrupted" not in out.stderr
+
+
+def test_a_spring_zero_far_off_the_record_is_warned(run, good_record):
+    # x_ref = 1e6 gave fk_delta = 1.6e7 N·m and no warning (it fires without --x-ref)
+    out = run("identify", "logdec", str(good_record), "--mass", "1", "--x-ref", "1e3")
+    out.assert_ok()
+    assert any("spring zero given" in line for line in out.lines), out.describe()
+
+
+def test_a_constant_load_in_a_free_decay_is_named(run, tmp_path, good_arrays):
+    # ignored without a word: it shifts the rest position and reads as fk_delta - u0
+    t, x = good_arrays["t"], good_arrays["x"]
+    (tmp_path / "load.csv").write_text("t [s],x [rad],u [N*m]\n" + "".join(
+        f"{a:.6f},{b:.9g},0.5\n" for a, b in zip(t, x, strict=True)))
+    out = run("identify", "logdec", "load.csv", "--mass", "1", "--method", "peaks")
+    out.assert_ok()
+    assert any("constant load of 0.5" in line for line in out.lines), out.describe()

@@ -193,5 +193,34 @@ def logdec_command(files, mass, stiffness, method, x_ref, drift, quantisation, b
         noise = est.diagnostics["noise_model"]
         counts += (f"   structure: {est.diagnostics['structure']}   noise: "
                    f"{noise_words(noise)}")
+    est = est.with_warnings(*_applied_force_notes(records))
     emit(est, output_opts, records=records, figure=figure,
          header=f"method: {est.method}   {counts}")
+
+
+def _applied_force_notes(records) -> list[str]:
+    """Say when a record's force column is not zero: a free decay is unforced.
+
+    A constant load was ignored without a word (fifth hostile campaign); it shifts the rest
+    position by u0/K and reads as a kinetic asymmetry (the estimate is fk_delta - u0).
+    """
+    import numpy as np
+
+    out = []
+    for i, rec in enumerate(records):
+        u = None if rec.u is None else np.asarray(rec.u, float)
+        if u is None or not np.any(u):
+            continue
+        name = f"record {i + 1}" if len(records) > 1 else "the record"
+        unit = rec.units.get("u", "")
+        mean, spread = float(np.mean(u)), float(np.std(u))
+        if spread <= 0.05 * abs(mean):
+            out.append(f"{name}'s force column holds a constant load of {mean:.4g} {unit}: "
+                       "a free-decay fit ignores u, and a constant load shifts the rest "
+                       "position by u0/K, so fk_delta reads as fk_delta - u0; drop the load, "
+                       "or ignore the column with --force none if it is not a load")
+        else:
+            out.append(f"{name}'s force column is not zero (up to {np.max(np.abs(u)):.4g} "
+                       f"{unit}): a free-decay fit assumes no applied force and ignores u; a "
+                       "driven record is fitted by identify forced or identify idim")
+    return out

@@ -169,14 +169,18 @@ def physics_warnings(params, at_bound, x_ref, u, zeta_bound):
             f"one-sided upper limit {1.645 * tkm.stderr:.3g} {u['x']}); a decay that slows "
             "less than exponentially at small amplitude (quadratic damping) pushes it there")
     tkd = params["theta_k_delta"]
-    if x_ref == 0.0 and abs(tkd.value) > abs(tkm.value) + 2 * tkd.stderr:
+    if abs(tkd.value) > abs(tkm.value) + 2 * tkd.stderr:
         # |fk_delta| > fk_mean means one direction's kinetic friction pushes: far more
-        # likely an encoder zero away from the spring's rest position than physics
+        # likely a spring zero away from the rest position than physics (a given x_ref of
+        # 1e6 gave fk_delta = 1.6e7 N·m unwarned, fifth hostile campaign)
+        where = ("an offset between the encoder zero and the spring zero looks the same (not "
+                 "identifiable from a free decay) - pass the spring zero with x_ref (CLI: "
+                 "--x-ref)" if x_ref == 0.0 else
+                 f"the spring zero given (x_ref = {x_ref:g} {u['x']}) is likely not where "
+                 "the record oscillates about: check it, or drop it")
         warnings.append(
             f"|fk_delta| exceeds fk_mean ({tkd.value:.3g} vs {tkm.value:.3g} {u['x']} as "
-            "theta_k): one direction's friction would push; an offset between the encoder "
-            "zero and the spring zero looks the same (not identifiable from a free decay) - "
-            "pass the spring zero with x_ref (CLI: --x-ref)")
+            f"theta_k): one direction's friction would push; {where}")
     return warnings
 
 
@@ -186,10 +190,9 @@ def growth_warnings(ys):
     The amplitude of a window is half its 2.5-97.5 % range (a drift inside a fifth of the
     record barely moves it); growth is a last fifth with the largest amplitude of the five,
     1.5 times the first's (a flat lead-in before the release peaks in a middle fifth). The
-    fit holds the
-    damping at >= 0, so it cannot follow such a record: a reversed decay of the fifth
-    hostile campaign (x17) came back with c_mean = +0.80 ± 4.1 and only 'ill-determined'
-    warnings.
+    fit holds the damping at >= 0, so it cannot follow such a record: a reversed decay of
+    the fifth hostile campaign (x17) came back with c_mean = +0.80 ± 4.1 and only
+    'ill-determined' warnings.
 
     Parameters
     ----------
