@@ -13,6 +13,7 @@ import json
 import math
 import os
 import stat
+from pathlib import Path
 
 import pytest
 
@@ -20,6 +21,7 @@ from tests.fuzz.test_fuzz_campaign3 import _DRIVE_TOML
 from tests.fuzz.test_fuzz_campaign4 import _motion_csv
 
 BIG = "9" * 400
+EXAMPLES = Path(__file__).parents[2] / "examples" / "drive_configs"
 
 
 # --- once exit 70 -------------------------------------------------------------------------
@@ -188,3 +190,16 @@ def test_a_constant_load_in_a_free_decay_is_named(run, tmp_path, good_arrays):
     out = run("identify", "logdec", "load.csv", "--mass", "1", "--method", "peaks")
     out.assert_ok()
     assert any("constant load of 0.5" in line for line in out.lines), out.describe()
+
+
+def test_contour_ramps_longer_than_the_circle_are_warned(run, tmp_path):
+    # a 1000 s ramp on a 3 s circle ran minutes in silence; the run's cost is now announced
+    # past 10 s (not run here) and ramps that travel more than the circle are warned
+    text = (EXAMPLES / "contour_xy.toml").read_text()
+    assert "ramp = " in text
+    text = "\n".join("ramp = 5.0" if line.startswith("ramp = ") else line
+                     for line in text.splitlines())
+    (tmp_path / "c.toml").write_text(text)
+    out = run("simulate", "contour", "c.toml", "--out", "c.csv")
+    out.assert_ok()
+    assert any("feed ramps" in line and "shorten [path] ramp" in line for line in out.lines)

@@ -95,6 +95,7 @@ def simulate_contour_command(config, out, compensate, seed, as_json, max_periods
     if seed is not None:
         cfg = dataclasses.replace(cfg, noise=dataclasses.replace(cfg.noise, seed=seed))
     ensure_writable(out, overwrite=overwrite)  # fail before the simulation
+    _announce_contour(cfg, max_periods, runs=1 if compensate is None else 4)
     comp = None
     if compensate is not None:
         from driveid.io.consistency import load_json
@@ -182,3 +183,24 @@ def identify_contour_command(file, config, min_speed, no_preview, record_opts, o
         return plot_contour_estimate(est)
 
     return emit(est, output_opts, figure=figure)
+
+
+def _announce_contour(cfg, max_periods, *, runs):
+    """Refuse over budget, else say what a long run costs and what long ramps do.
+
+    A 1000 s feed ramp on a 3 s circle ran silent for minutes (fifth hostile campaign).
+    """
+    import math
+
+    from driveid.sim.contour import SECONDS_PER_PERIOD, check_contour_cost
+
+    path = cfg.path
+    ramp_turns = path.feed * path.ramp / (2 * math.pi * path.radius)  # both ramps together
+    if ramp_turns > path.revolutions:
+        click.echo(f"warning: the feed ramps ([path] ramp = {path.ramp:g} s each) travel "
+                   f"{ramp_turns:.3g} revolutions, more than the {path.revolutions:g} at "
+                   "constant feed: most of the record is ramp; shorten [path] ramp", err=True)
+    seconds = runs * check_contour_cost(cfg, max_periods) * SECONDS_PER_PERIOD
+    if seconds > 10.0:
+        click.echo(f"note: simulate contour: {path.duration:.4g} s of path, about "
+                   f"{seconds:.3g} s on one core (an estimate)", err=True)

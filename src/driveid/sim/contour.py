@@ -41,7 +41,7 @@ from driveid.errors import ParameterError
 from driveid.sim.contour_config import AxisConfig, CirclePath, ContourConfig, MeasurementNoise
 from driveid.sim.drive import simulate_drive
 
-__all__ = ["AxisCompensation", "ContourResult", "circle_reference", "closed_loop_gain",
+__all__ = ["SECONDS_PER_PERIOD", "AxisCompensation", "ContourResult", "circle_reference", "closed_loop_gain",
            "contour_metrics", "simulate_contour"]
 
 _GLITCH_BEFORE = math.radians(10.0)  # a glitch window opens before the reversal [rad]
@@ -447,7 +447,8 @@ def contour_metrics(t: np.ndarray, p1: np.ndarray, p2: np.ndarray, path: CircleP
 
 #: Measured cost of one control period of one axis (the Python controller call and the
 #: integration between calls): 33 µs at 200 kHz on this 2-core machine [s].
-_SECONDS_PER_PERIOD = 3.5e-5
+#: Seconds of one control period of the Python controller loop, one core (measured) [s].
+SECONDS_PER_PERIOD = 3.5e-5
 #: Default budget of control periods (Python controller calls) of one run, all axes [-]:
 #: about 6 minutes; the example's circle takes 1.3e4.
 DEFAULT_MAX_PERIODS = 10**7
@@ -491,7 +492,7 @@ def check_contour_cost(config: ContourConfig,
         raise ParameterError(
             f"simulate contour: {periods:.3g} control periods ({path.duration:.3g} s at "
             f"{rate:.3g} Hz, {len(config.axes)} axes), over the budget of {max_periods:.3g} "
-            f"(CLI --max-periods), about {periods * _SECONDS_PER_PERIOD / 60:.3g} min of "
+            f"(CLI --max-periods), about {periods * SECONDS_PER_PERIOD / 60:.3g} min of "
             f"Python controller calls; lower {keys}, or raise the budget")
     return periods
 
