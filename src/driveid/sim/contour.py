@@ -41,8 +41,8 @@ from driveid.errors import ParameterError
 from driveid.sim.contour_config import AxisConfig, CirclePath, ContourConfig, MeasurementNoise
 from driveid.sim.drive import simulate_drive
 
-__all__ = ["SECONDS_PER_PERIOD", "AxisCompensation", "ContourResult", "circle_reference", "closed_loop_gain",
-           "contour_metrics", "simulate_contour"]
+__all__ = ["SECONDS_PER_PERIOD", "AxisCompensation", "ContourResult", "circle_reference",
+           "closed_loop_gain", "contour_metrics", "simulate_contour"]
 
 _GLITCH_BEFORE = math.radians(10.0)  # a glitch window opens before the reversal [rad]
 _GLITCH_AFTER = math.radians(35.0)  # and closes after it, short of the next quadrant [rad]
