@@ -203,3 +203,14 @@ def test_contour_ramps_longer_than_the_circle_are_warned(run, tmp_path):
     out = run("simulate", "contour", "c.toml", "--out", "c.csv")
     out.assert_ok()
     assert any("feed ramps" in line and "shorten [path] ramp" in line for line in out.lines)
+
+
+def test_a_circle_shorter_than_the_control_period_is_warned(run, tmp_path):
+    # feed 1e4 m/s on a 5 cm circle: a 9.7 km 'radial error' was reported as a result
+    text = (EXAMPLES / "contour_xy.toml").read_text()
+    text = "\n".join("feed = 1e4" if line.startswith("feed = ") else line
+                     for line in text.splitlines())
+    (tmp_path / "c.toml").write_text(text)
+    out = run("simulate", "contour", "c.toml", "--out", "c.csv")
+    out.assert_ok()
+    assert any("no controller follows it" in line for line in out.lines), out.describe()

@@ -200,6 +200,14 @@ def _announce_contour(cfg, max_periods, *, runs):
         click.echo(f"warning: the feed ramps ([path] ramp = {path.ramp:g} s each) travel "
                    f"{ramp_turns:.3g} revolutions, more than the {path.revolutions:g} at "
                    "constant feed: most of the record is ramp; shorten [path] ramp", err=True)
+    rate = min(a.controller.rate for a in cfg.axes.values())
+    if path.constant_feed * rate < 100:
+        # a 1e4 m/s feed or a 1 nm radius: the circle passes between two control periods
+        # and the result read as a 9.7 km radial error (fifth hostile campaign)
+        click.echo(f"warning: the circle at constant feed lasts {path.constant_feed:.3g} s, "
+                   f"{path.constant_feed * rate:.3g} control periods at {rate:g} Hz: no "
+                   "controller follows it and the radial error measures that; lower [path] "
+                   "feed or raise radius (a ball bar runs hundreds of periods a turn)", err=True)
     seconds = runs * check_contour_cost(cfg, max_periods) * SECONDS_PER_PERIOD
     if seconds > 10.0:
         click.echo(f"note: simulate contour: {path.duration:.4g} s of path, about "
