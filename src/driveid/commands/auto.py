@@ -31,7 +31,11 @@ def auto_command(files, mass, stiffness, record_opts, output_opts):
     records = record_opts.read_all(files)
     if not output_opts.quiet:
         click.echo("reading done; classifying and fitting", err=True)
-    est = identify_auto(records, mass=mass, stiffness=stiffness)
+    def say(name):  # each candidate as it starts: a 5e6-row record was a minute of silence
+        click.echo(f"fitting: {name} ({sum(r.n for r in records):,} samples)", err=True)
+
+    est = identify_auto(records, mass=mass, stiffness=stiffness,
+                        progress=None if output_opts.quiet else say)
     auto = est.diagnostics["auto"]
     lines = [f"test shape: {auto['shape']} ({'; '.join(auto['evidence'])})",
              f"method: {est.method} - {auto['reason']}"]
