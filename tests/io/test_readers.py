@@ -302,6 +302,17 @@ def test_simulink_struct_and_sparse_last_column(tmp_path):
     np.testing.assert_array_equal(read_record(tmp_path / "sparse.csv").x, ref.x)
 
 
+def test_clock_times_that_cross_midnight(tmp_path):
+    # 23:59:59.5 -> 00:00:00.0 was read as time going back 86399.5 s (refused, with advice
+    # to sort the samples, which would scramble the record)
+    stamps = [f"23:59:{59 + 0.1 * k:06.3f}" if k < 10 else f"00:00:{0.1 * (k - 10):06.3f}"
+              for k in range(30)]
+    (tmp_path / "m.csv").write_text("time,x [rad]\n" + "".join(
+        f"{s},{k}\n" for k, s in enumerate(stamps)))
+    t = read_table(tmp_path / "m.csv").columns["time"]
+    np.testing.assert_allclose(np.diff(t), 0.1, atol=1e-9)
+
+
 def test_missing_value_cells_and_ragged_rows(tmp_path):
     ref = decay()
     rows = [f"{a:.17g},{b:.17g},0" for a, b in zip(ref.t, ref.x, strict=True)]

@@ -231,7 +231,11 @@ def _seconds(values: Any) -> np.ndarray | None:
             stamps = pd.to_datetime(text, format="mixed")
             return (stamps - stamps.iloc[0]).dt.total_seconds().to_numpy(dtype=float)
         deltas = pd.to_timedelta(text)
-        return (deltas - deltas.iloc[0]).dt.total_seconds().to_numpy(dtype=float)
+        seconds = (deltas - deltas.iloc[0]).dt.total_seconds().to_numpy(dtype=float)
+        # a clock time without a date wraps at midnight (23:59:59 -> 00:00:00): a step back
+        # of more than half a day is the next day (the time was read as going back 86390 s)
+        days = np.concatenate([[0.0], np.cumsum(np.diff(seconds) < -43200.0)])
+        return seconds + 86400.0 * days
     except (ValueError, TypeError):
         return None
 
