@@ -196,9 +196,14 @@ def check_oscillation(record: Record, *, min_snr: float) -> Oscillation:
     omega = dominant_frequency(x, record.fs)
     periods = record.duration * omega / (2 * np.pi)
     if periods < MIN_PERIODS:
+        # a held release or a stuck end puts the spectrum's peak at the step, not at the
+        # oscillation: 'record for longer' alone was the wrong fix (fifth hostile campaign)
         raise RecordError(
             f"the record must span at least {MIN_PERIODS:g} periods of the oscillation for "
-            f"instantaneous identification; record for longer; got {periods:.2g} periods"
+            f"instantaneous identification; got {periods:.2g} periods at its largest "
+            f"spectral peak ({omega / (2 * np.pi):.3g} Hz): crop a rest before or after the "
+            "oscillation (a held release, a stuck end) with --t-start/--t-end, or record "
+            "for longer"
         )
     snr = peak / noise if noise > 0 else math.inf
     if snr < min_snr:
