@@ -214,3 +214,9 @@ def test_a_circle_shorter_than_the_control_period_is_warned(run, tmp_path):
     out = run("simulate", "contour", "c.toml", "--out", "c.csv")
     out.assert_ok()
     assert any("no controller follows it" in line for line in out.lines), out.describe()
+
+
+def test_a_prbs_of_one_bit_is_refused(run):
+    # a clock period longer than the record wrote a constant as a "PRBS"
+    run("excite", "prbs", "--f-clock", "0.001", "--duration", "1", "--amplitude", "1",
+        "--out", "e.csv").assert_clean_error("a prbs needs many bits")

@@ -340,6 +340,11 @@ def prbs(*, f_clock: float, duration: float, fs: float, amplitude: float,
     if hold < 1:
         raise ParameterError(f"f_clock={f_clock} Hz must not exceed fs={fs} Hz")
     n_bits = int(math.ceil(t.size / hold))
+    if n_bits < 3:  # 1 or 2 bits: a constant or a single step, written as a "PRBS" before
+        raise ParameterError(
+            f"f_clock={f_clock:g} Hz gives {n_bits} bit(s) in {duration:g} s: a PRBS needs "
+            f"many bits; raise f_clock to well above 3/duration = {3 / duration:.3g} Hz or "
+            "lengthen the duration")
     if order is None:
         order = max(2, int(math.ceil(math.log2(n_bits + 1))))
     if not (isinstance(order, int) and 2 <= order <= 24):
