@@ -220,3 +220,12 @@ def test_a_prbs_of_one_bit_is_refused(run):
     # a clock period longer than the record wrote a constant as a "PRBS"
     run("excite", "prbs", "--f-clock", "0.001", "--duration", "1", "--amplitude", "1",
         "--out", "e.csv").assert_clean_error("a prbs needs many bits")
+
+
+def test_track_on_one_frequency_says_a_spring_would_hide_in_j(run, tmp_path):
+    # a 1 Hz sine on a K = 16 body gave J 42 % low (J - K/ω²) and no word
+    _motion_csv(tmp_path / "m.csv")
+    out = run("track", "m.csv", "--every", "0.5")
+    out.assert_ok()
+    assert any("cannot tell the inertia from a spring" in line for line in out.lines), \
+        out.describe()
