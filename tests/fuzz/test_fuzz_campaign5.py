@@ -229,3 +229,11 @@ def test_track_on_one_frequency_says_a_spring_would_hide_in_j(run, tmp_path):
     out.assert_ok()
     assert any("cannot tell the inertia from a spring" in line for line in out.lines), \
         out.describe()
+
+
+@pytest.mark.parametrize("expr, column", [("v", "Fv"), ("sign(v)", "Fc")])
+def test_a_regressor_the_model_has_is_named(run, tmp_path, expr, column):
+    # "rank-deficient ... excite both acceleration and velocity" was the wrong fix
+    _motion_csv(tmp_path / "m.csv")
+    out = run("identify", "idim", "m.csv", "--regressor", expr)
+    assert out.code == 2 and f"column of {column}" in out.lines[-1], out.describe()

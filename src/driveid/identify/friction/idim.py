@@ -108,6 +108,32 @@ def _as_records(records: Record | Sequence[Record]) -> list[Record]:
                                 "decimation") for r in recs]
 
 
+def _refuse_repeated_regressors(blocks, regressors, p, model, offset) -> None:
+    """Refuse an extra regressor proportional to another column (``--regressor v``).
+
+    The rank check said "excite both acceleration and velocity", the wrong fix for a
+    column given twice (fifth hostile campaign).
+    """
+    if not regressors:
+        return
+    W = np.vstack([b[0] for b in blocks])
+    names = list(_names(model, False, "N")[0])
+    if offset is not None and model == "symmetric":
+        names = names[:-1]
+    names += [f"k[{r}]" for r in regressors]
+    norms = np.linalg.norm(W, axis=0)
+    for j in range(p - len(regressors), p):
+        for k in range(j):
+            if norms[j] > 0 and norms[k] > 0 and \
+                    abs(W[:, j] @ W[:, k]) >= (1 - 1e-9) * norms[j] * norms[k]:
+                raise ParameterError(
+                    f"the regressor {regressors[j - p + len(regressors)]!r} is proportional "
+                    f"to the column of {names[k]} on this record, so their coefficients "
+                    "cannot be told apart: drop it (--regressor) if the model already has "
+                    "it, else record a motion in which the two differ (a sine makes x and a "
+                    "proportional)")
+
+
 def _stack(recs: list[Record], loads: list[Any], settings: dict[str, Any]
            ) -> tuple[list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]], int]:
     blocks = [idim_regressor(r, load=ld, **settings) for r, ld in zip(recs, loads, strict=True)]
@@ -305,6 +331,7 @@ def estimate_idim(
             raise IdentificationError(
                 f"the regressor {expr!r} is zero on every row, so its coefficient cannot be "
                 "estimated; drop it (--regressor) or check its expression")
+    _refuse_repeated_regressors(blocks, regressors, p, model, offset)
     v_all = np.concatenate([b[3] for b in blocks])
     _check_motion(v_all, model, offset)
     w = _weights(weights, len(recs))
