@@ -237,3 +237,13 @@ def test_a_regressor_the_model_has_is_named(run, tmp_path, expr, column):
     _motion_csv(tmp_path / "m.csv")
     out = run("identify", "idim", "m.csv", "--regressor", expr)
     assert out.code == 2 and f"column of {column}" in out.lines[-1], out.describe()
+
+
+def test_a_huge_frictional_memory_names_the_body(run, tmp_path):
+    # "out of memory ... use --t-start/--t-end", options simulate drive does not have
+    (tmp_path / "m.toml").write_text(
+        '[[body]]\nJ = 0.01\nK = 1.0\nfk_mean = 0.05\nfs_mean = 0.08\n'
+        'stribeck = "bo_pavelescu"\nv_s = 0.01\nmemory = 1e9\n[run]\nduration = 1.0\n'
+        'x0 = [1.0]\n')
+    run("simulate", "drive", "m.toml", "--out", "o.csv").assert_clean_error(
+        "body 1's frictional memory")

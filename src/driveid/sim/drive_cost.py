@@ -91,6 +91,9 @@ class DriveCost:
     history : float
         Bytes of the feedback's state history (4 rows of 8 B a grid step, plus twice the
         steps of the delay), held during the run [B]; 0 without feedback.
+    rings : dict of int to float
+        Bytes of each body's frictional-memory ring (0-based body -> 32 B a grid step of
+        its lag, Eq. 2.12), held during the run [B]; empty without memory.
     """
 
     n_samples: int
@@ -101,6 +104,7 @@ class DriveCost:
     memory: float
     seconds: float
     history: float = 0.0
+    rings: dict = dataclasses.field(default_factory=dict)
 
 
 def estimate_drive_cost(params: DriveParams, *, duration: float, fs: float = 1000.0,
@@ -162,9 +166,12 @@ def estimate_drive_cost(params: DriveParams, *, duration: float, fs: float = 100
         h = 1.0 / (fs * n_sub)
         ring = math.ceil(fb.delay / h - 1e-9) + 3 if fb.delay > 0 else 0
         history = 32.0 * (n_steps + 2 + 2 * ring)
-    return DriveCost(n_samples=n_out, n_steps=n_steps, step=1.0 / (fs * n_sub),
+    h = 1.0 / (fs * n_sub)
+    rings = {i: 32.0 * (math.ceil(b.memory / h - 1e-9) + 3)
+             for i, b in enumerate(params.bodies) if b.memory > 0}
+    return DriveCost(n_samples=n_out, n_steps=n_steps, step=h,
                      period=2 * math.pi / rate if rate > 0 else math.inf, stiffest=what,
-                     memory=memory, seconds=seconds, history=history)
+                     memory=memory, seconds=seconds, history=history, rings=rings)
 
 
 def _max_step(params: DriveParams, fs: float, rate: float, max_step: float | None) -> float:
@@ -205,6 +212,16 @@ def check_drive_cost(cost: DriveCost, *, duration: float,
     from driveid.io.consistency import available_memory, check_allocation, format_bytes
 
     free = available_memory()
+    if cost.rings and cost.memory + cost.history + sum(cost.rings.values()) > free:
+        # a frictional memory of 1e6 s: "out of memory ... use --t-start", an option
+        # simulate drive does not have (fifth hostile campaign)
+        body = max(cost.rings, key=cost.rings.get)
+        raise ParameterError(
+            f"simulate_drive: body {body + 1}'s frictional memory needs a ring of about "
+            f"{format_bytes(cost.rings[body])} (its lag in grid steps of {cost.step:.2g} s, "
+            f"32 B each), more than the {format_bytes(free)} of memory available; a "
+            "frictional memory lasts milliseconds (Hess-Soom: a few ms): lower that "
+            "[[body]] memory")
     steps_part = 32.0 * (cost.n_steps + 2)
     if cost.memory + cost.history > free and cost.history > cost.memory \
             and steps_part > 0.5 * cost.history:
