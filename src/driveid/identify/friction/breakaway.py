@@ -113,8 +113,8 @@ def estimate_breakaway_sliding(
     minus = [r for r in ramps if r["direction"] < 0]
     if not ramps:
         raise IdentificationError(
-            f"no force ramp reaches gross sliding (rate > v_break = {v_break:g}); apply a "
-            "slow ramp from rest that ends in sliding, or lower v_break; got 0 ramps")
+            f"no force ramp reaches gross sliding (rate > v_break = {v_break:g}); "
+            + _v_break_advice(recs[0], v_break, window) + "; got 0 ramps")
     first = recs[0]
     xu, fu = first.units.get("x", "rad"), first.units.get("u", "N·m")
     params: dict[str, Parameter] = {}
@@ -233,3 +233,24 @@ def rising_friction_from_breakaways(estimate: Estimate) -> Estimate:
                                     np.array([r["force"] for r in rows]), unit=unit)
 
 
+
+
+def _v_break_advice(rec: Record, v_break: float, window: float | None) -> str:
+    """Say which way v_break is off: below the noise's rate, above every motion, or fine.
+
+    "lower v_break" was the advice for v_break = 1e-12 too, where the noise alone exceeds
+    it everywhere and no ramp starts from rest (fifth hostile campaign).
+    """
+    x = np.asarray(rec.x, float)
+    lag = 10 if window is None else max(1, round(window * rec.fs))  # as _ramps
+    if x.size <= lag + 1:
+        return f"the rate window ({lag / rec.fs:g} s) is longer than the record: shorten it"
+    rates = np.abs(x[lag:] - x[:-lag]) / (lag / rec.fs)
+    floor, top = (float(np.percentile(rates, q)) for q in (1, 99.5))
+    if v_break <= floor:
+        return (f"v_break is below the rate of the record's slowest 1 % ({floor:.3g}: at "
+                "rest, its noise): raise it above that")
+    if v_break >= top:
+        return (f"v_break is above the record's fastest motion ({top:.3g}): lower it, or apply "
+                "a ramp that ends in sliding")
+    return "apply a slow ramp from rest that ends in sliding, or lower v_break"

@@ -408,6 +408,12 @@ def track_friction(chunks: Iterable[dict[str, np.ndarray]] | Record, *, fs: floa
             if not (math.isfinite(T_mem) and T_mem > 0):
                 raise ParameterError(f"memory must be positive [s]; got {memory!r}")
             n_block = max(int(round(block * fs)), 1)
+            shortest = max(20.0, 2.0 * n_block) / fs
+            if T_mem < shortest:  # forgot within a block: "singular regressor, excite both"
+                raise ParameterError(
+                    f"memory={T_mem:.3g} s is shorter than {shortest:.3g} s, the fewest samples"
+                    " (20, and two blocks) its window needs to separate the parameters; give a "
+                    "longer memory (CLI --memory, or --drift-time, ten times the memory)")
             if output_every < 0.999 * n_block / fs:  # a block of one sample: 1/fs > block
                 raise ParameterError(
                     f"output_every={output_every:g} s is shorter than the sampling interval "
