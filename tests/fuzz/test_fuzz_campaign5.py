@@ -247,3 +247,9 @@ def test_a_huge_frictional_memory_names_the_body(run, tmp_path):
         'x0 = [1.0]\n')
     run("simulate", "drive", "m.toml", "--out", "o.csv").assert_clean_error(
         "body 1's frictional memory")
+
+
+def test_a_column_scaled_twice_is_refused(run, good_record):
+    # --scale x=2 --scale x=3 used the last one in silence
+    out = run("inspect", str(good_record), "--scale", "x=2", "--scale", "x=3")
+    assert out.code == 2 and "gives column x twice" in out.stderr, out.describe()

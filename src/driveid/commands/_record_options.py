@@ -297,7 +297,13 @@ def _pairs(values: Sequence[str], option: str) -> dict[str, str]:
         key, sep, value = item.partition("=")
         if not sep or not key.strip() or not value.strip():
             raise click.BadParameter(f"{option} takes COL=VALUE, e.g. {option} u=200; got {item!r}")
-        out[_column(key.strip(), option)] = value.strip()
+        column = _column(key.strip(), option)
+        if column in out and out[column] != value.strip():  # the last one won in silence
+            raise click.BadParameter(
+                f"{option} gives column {column} twice ({out[column]!r} and {value.strip()!r})"
+                "; give it once" + ("" if option != "--scale" else
+                                    f" (a product is one expression, e.g. --scale {column}=2*3)"))
+        out[column] = value.strip()
     return out
 
 

@@ -54,7 +54,7 @@ def decode_sign_magnitude(values: np.ndarray, bits: int) -> np.ndarray:
     if finite.size and (np.any(finite != np.round(finite)) or finite.min() < 0
                         or finite.max() >= top):
         raise FileFormatError(
-            f"a {bits}-bit sign-magnitude register holds integers 0..{top - 1:.0f}; got "
+            f"a {bits}-bit sign-magnitude register holds integers 0..{2**bits - 1}; got "
             f"values from {finite.min():g} to {finite.max():g}")
     half = 2.0 ** (bits - 1)
     return np.where(values >= half, -(values - half), values)

@@ -402,7 +402,8 @@ def estimate_static_stiffness(
     if T.size != x.size or T.size < 3 or np.unique(T).size < 2:
         raise IdentificationError(
             "static stiffness needs at least 3 tests at 2 or more load levels (equal-length "
-            f"arrays); add loads; got {T.size} loads, {x.size} deflections"
+            f"arrays); add loads; got {T.size} loads at {np.unique(T).size} level(s), "
+            f"{x.size} deflections"
         )
     theta, se, _ = _linear_fit(np.column_stack([np.ones_like(T), T]), x)
     x0, comp = map(float, theta)
