@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 from click.testing import CliRunner
@@ -194,3 +195,58 @@ def test_identify_drive_says_in_words_whether_it_fitted_pieces():
     assert before_pieces.startswith("fit: the whole record (ended 61 times the noise, so "
                                     "fitted again from 0.1 s heads: 1.1 times, kept), then "
                                     "12 pieces of 0.5 s"), before_pieces
+
+
+def _noisy(path, sigma, seed):
+    """Add white noise of ``sigma`` [rad] to the x1 column of a simulate-drive CSV."""
+    import numpy as np
+
+    lines = path.read_text().splitlines()
+    head = [ln for ln in lines if ln.startswith("#")]
+    header, rows = lines[len(head)], lines[len(head) + 1:]
+    col = header.split(",").index(next(c for c in header.split(",") if c.startswith("x1")))
+    rng = np.random.default_rng(seed)
+    out = []
+    for row in rows:
+        cells = row.split(",")
+        cells[col] = repr(float(cells[col]) + sigma * rng.normal())
+        out.append(",".join(cells))
+    path.write_text("\n".join(head + [header] + out) + "\n")
+    return path
+
+
+def test_validate_simulates_an_identified_drive_on_its_own_and_held_out_records(tmp_path):
+    # issue 25: "validate checks it" (until 2026-11-28 a drive-oe result was refused)
+    sigma = 2e-4
+    _, fitted_csv = _record(tmp_path)
+    _noisy(fitted_csv, sigma, 1)
+    _, held_csv = _record(tmp_path, TOML.replace("x0 = [1.0]", "x0 = [0.7]"), name="held")
+    _noisy(held_csv, sigma, 2)
+    start = tmp_path / "start.toml"
+    start.write_text(TOML.replace("J = 0.0115355", "J = 0.015"))
+    fit = CliRunner().invoke(cli, ["identify", "drive", str(start), str(fitted_csv),
+                                   "--estimate", "body1.J,body1.fk_mean", "--channel",
+                                   "v1=none", "--json"])
+    assert fit.exit_code == 0, fit.output
+    result = tmp_path / "r.json"
+    result.write_text(fit.stdout)
+    out = CliRunner().invoke(cli, ["validate", str(result), str(fitted_csv), str(held_csv),
+                                   "--json"])
+    assert out.exit_code == 0, out.output
+    rows = {r["path"]: r for r in json.loads(out.stdout)["records"]}
+    own, held = rows[f"{fitted_csv}:x1"], rows[f"{held_csv}:x1"]
+    assert not own["held_out"] and held["held_out"]
+    # the residual is the added sensor noise: its rms within 10 % of sigma on 2000 samples
+    # (the rms of 2000 normal draws is within 3 % at 3 sd; the rest for the fitted state)
+    for row in (own, held):
+        assert row["residual_rms"] == pytest.approx(sigma, rel=0.1), row
+        assert row["fit"] > 99.0
+    # a wrong drive (J doubled in the result's model) fits the held-out record far worse
+    data = json.loads(fit.stdout)
+    toml = data["diagnostics"]["model_toml"]
+    data["diagnostics"]["model_toml"] = re.sub(
+        r"^J = ([0-9.eE+-]+)", lambda m: f"J = {2 * float(m.group(1))!r}", toml, flags=re.M)
+    assert data["diagnostics"]["model_toml"] != toml
+    result.write_text(json.dumps(data))
+    bad = CliRunner().invoke(cli, ["validate", str(result), str(held_csv)])
+    assert bad.exit_code == 0 and "not white" in bad.output, bad.output

@@ -136,7 +136,8 @@ def kind_of(estimate: Estimate) -> str:
     raise IdentificationError(
         f"validation of a {method!r} estimate is not supported: it is no free decay (it "
         f"lacks the free-decay parameters {missing}) and no other simulatable model; "
-        f"supported: {SUPPORTED}")
+        f"supported: {SUPPORTED} (and drive-oe through driveid.validate_drive.compare_drive"
+        ", which the validate command uses)")
 
 
 def _value(estimate: Estimate, name: str, what: str) -> float:

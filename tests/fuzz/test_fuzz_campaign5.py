@@ -253,3 +253,15 @@ def test_a_column_scaled_twice_is_refused(run, good_record):
     # --scale x=2 --scale x=3 used the last one in silence
     out = run("inspect", str(good_record), "--scale", "x=2", "--scale", "x=3")
     assert out.code == 2 and "gives column x twice" in out.stderr, out.describe()
+
+
+@pytest.mark.parametrize("model", ["[[body]\nJ=", 5, "[[body]]\nJ = -1\n"])
+def test_validate_a_drive_result_whose_model_was_edited(run, tmp_path, model):
+    # validate learned drive results on 2026-11-28: a hand-edited model is one clear line
+    (tmp_path / "c.toml").write_text(_DRIVE_TOML)
+    run("simulate", "drive", "c.toml", "--out", "d.csv").assert_ok()
+    out = run("identify", "drive", "c.toml", "d.csv", "--estimate", "body1.J", "--json")
+    data = json.loads(out.stdout)
+    data["diagnostics"]["model_toml"] = model
+    (tmp_path / "r.json").write_text(json.dumps(data))
+    run("validate", "r.json", "d.csv").assert_clean_error("model_toml")

@@ -122,8 +122,9 @@ def _read_as_estimated(files, estimate, record_opts: RecordOptions, result: Path
 def validate_command(result, files, lags, inertia, as_json, figure, overwrite, record_opts):
     """Simulate the model identified in RESULT.json on FILEs: fit %, residual whiteness.
 
-    RESULT.json is the --json of a free-decay (logdec, output error), PHO, forced, IDIM or
-    friction-map identification. Each FILE is simulated with its own input u and initial
+    RESULT.json is the --json of a free-decay (logdec, output error), PHO, forced, IDIM,
+    friction-map or drive (identify drive: every measured channel, FILE:x1 ...)
+    identification. Each FILE is simulated with its own input u and initial
     state: a PHO run in its PD loop (gains P, D and release x0 from the file's meta line),
     a forced, IDIM or friction-map run driven by its u. A FILE the estimate was not
     computed from is held out, and its residual rms is the prediction error. Without
@@ -133,12 +134,16 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
     from driveid.validate import compare
 
     estimate = _load_estimate(result)
-    records = _read_as_estimated(files, estimate, record_opts, result)
-    comparisons = []
-    for k, record in enumerate(records):
-        index = _index_of(record, estimate, k, len(records))
-        comparisons.append(compare(record, estimate, index=index, lags=lags,
-                                   inertia=inertia))
+    if estimate.method == "drive-oe":  # every measured channel of every file (issue 25)
+        labels, comparisons = _compare_drive(files, estimate, record_opts, lags)
+    else:
+        records = _read_as_estimated(files, estimate, record_opts, result)
+        comparisons = []
+        for k, record in enumerate(records):
+            index = _index_of(record, estimate, k, len(records))
+            comparisons.append(compare(record, estimate, index=index, lags=lags,
+                                       inertia=inertia))
+        labels = [str(f) for f in files]
     if figure is not None:
         import matplotlib.pyplot as plt
 
@@ -156,9 +161,9 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
                     ax.set_axis_off()
                 continue
             comparisons[k].plot(ax=panel)
-            panel[0].set_title(str(files[k]), fontsize="small")
+            panel[0].set_title(labels[k], fontsize="small")
         save_figure(fig, figure, overwrite=overwrite)
-    for spec, c in zip(files, comparisons, strict=True):
+    for spec, c in zip(labels, comparisons, strict=True):
         for message in c.warnings:
             click.echo(f"warning: {spec}: {cli_text(message)}", err=True)
     fits = [c.fit for c in comparisons]
@@ -181,8 +186,8 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
                           "white_through_noise_model": all(
                               _white_cell(c.whiteness) != "NO" for c in comparisons),
                           "test": "ljung-box", "lags": lags},
-            "records": [dict(c.to_dict(), path=str(spec))
-                        for spec, c in zip(files, comparisons, strict=True)],
+            "records": [dict(c.to_dict(), path=spec)
+                        for spec, c in zip(labels, comparisons, strict=True)],
         }
         click.echo(json.dumps(out, indent=2))
         return
@@ -191,8 +196,8 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
     click.echo(f"model: {comparisons[0].model.get('kind')} ({estimate.method}), simulated "
                "with each record's input and initial state")
     rows = [("file", "fit %", "residual rms", "Ljung–Box p", "white", "held out")]
-    for spec, c in zip(files, comparisons, strict=True):
-        rows.append((str(spec), f"{c.fit:.3f}", f"{c.residual_rms:.3g}",
+    for spec, c in zip(labels, comparisons, strict=True):
+        rows.append((spec, f"{c.fit:.3f}", f"{c.residual_rms:.3g}",
                      f"{c.whiteness['p_value']:.3g}", _white_cell(c.whiteness),
                      "yes" if c.held_out else "no"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
@@ -200,6 +205,38 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
         click.echo("  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)))
         if n == 0:
             click.echo("  ".join("-" * w for w in widths))
+
+
+def _compare_drive(files, estimate, record_opts, lags):
+    """Read each FILE as the drive fit did and compare every channel (``FILE:x1`` ...)."""
+    from driveid.commands._record_options import split_window_spec
+    from driveid.identify.drive.records import read_drive_record
+    from driveid.io.reading import file_sha256
+    from driveid.validate_drive import compare_drive, drive_of
+
+    params, _ = drive_of(estimate)
+    inputs = [dict(i) for i in estimate.inputs]
+    labels, comparisons = [], []
+    for k, spec in enumerate(files):
+        path, window = split_window_spec(spec)
+        digest = file_sha256(path) if path.is_file() else None
+        hashes = [i.get("sha256") for i in inputs]
+        index = hashes.index(digest) if digest and digest in hashes else None
+        stored = inputs[index if index is not None else min(k, len(inputs) - 1)] \
+            if inputs else {}
+        columns = dict(stored.get("columns") or {})
+        record = read_drive_record(
+            path, read_kwargs=record_opts.read_kwargs(None if window == (None, None)
+                                                      else window),
+            time_column=record_opts.columns.get("t"),
+            channels={c: f for c, f in columns.items() if c[:1] in "xv" and c[1:].isdigit()},
+            input_column=columns.get("u"), n_bodies=params.n_bodies)
+        if index is not None and window != (None, None):
+            index = None  # a window of a fitted file starts elsewhere: its state is fitted anew
+        for name, c in compare_drive(record, estimate, index=index, lags=lags).items():
+            labels.append(f"{spec}:{name}")
+            comparisons.append(c)
+    return labels, comparisons
 
 
 def _white_cell(white):
