@@ -302,6 +302,36 @@ def test_simulink_struct_and_sparse_last_column(tmp_path):
     np.testing.assert_array_equal(read_record(tmp_path / "sparse.csv").x, ref.x)
 
 
+@pytest.mark.parametrize("codec, bom", [("utf-16-le", b"\xff\xfe"), ("utf-16-be", b"\xfe\xff"),
+                                        ("utf-16-le", b"")])
+def test_excel_unicode_text_exports(tmp_path, codec, bom):
+    # Excel's "Unicode text" is UTF-16 (a BOM, or none): read as cp1252 it had no numeric
+    # block ("found no block of numeric rows")
+    ref = decay()
+    text = "Zeit [s];Position [°]\n" + "".join(
+        f"{a:.6f};{b:.12f}\n".replace(".", ",") for a, b in zip(ref.t, ref.x, strict=True))
+    (tmp_path / "u.csv").write_bytes(bom + text.encode(codec))
+    rec = read_record(tmp_path / "u.csv")
+    np.testing.assert_allclose(rec.x, np.radians(ref.x), atol=1e-12)
+
+
+def test_time_zones_and_a_clock_set_back_an_hour(tmp_path):
+    # ISO times with an offset, across the DST switch, read on one clock (UTC); a local
+    # clock set back an hour is named as such (its advice was to sort the samples)
+    stamps = [f"2024-03-31T01:59:59.{k:01d}00+01:00" for k in range(10)] + \
+        [f"2024-03-31T03:00:00.{k:01d}00+02:00" for k in range(10)]
+    (tmp_path / "z.csv").write_text("timestamp,x [rad]\n" + "".join(
+        f"{s},{k}\n" for k, s in enumerate(stamps)))
+    np.testing.assert_allclose(np.diff(read_table(tmp_path / "z.csv").columns["timestamp"]),
+                               0.1, atol=1e-9)
+    stamps = [f"2024-10-27 02:59:{50 + 0.5 * k:04.1f}" for k in range(20)] + \
+        [f"2024-10-27 02:00:{0.5 * k:04.1f}" for k in range(20)]
+    (tmp_path / "b.csv").write_text("timestamp,x [rad]\n" + "".join(
+        f"{s},{k % 7}\n" for k, s in enumerate(stamps)))
+    with pytest.raises(RecordError, match="daylight saving time ends"):
+        read_record(tmp_path / "b.csv")
+
+
 def test_clock_times_that_cross_midnight(tmp_path):
     # 23:59:59.5 -> 00:00:00.0 was read as time going back 86399.5 s (refused, with advice
     # to sort the samples, which would scramble the record)

@@ -128,8 +128,28 @@ _RATE = re.compile(r"(sampl\w*\s*(rate|freq\w*)|fs|abtastrate)\W+([0-9.eE+-]+)\s
                    re.IGNORECASE)
 
 
+def _utf16(path: Path) -> str | None:
+    """Return the UTF-16 codec of an Excel "Unicode text" export, or None.
+
+    A BOM names it; without one, NUL bytes in every other position of the head do (ASCII
+    text in UTF-16-LE). It read as cp1252 before: "no block of numeric rows".
+    """
+    with open(path, "rb") as fh:
+        head = fh.read(4096)
+    if head[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        return "utf-16"
+    if len(head) >= 64:
+        odd, even = head[1::2], head[0::2]
+        if odd.count(0) > 0.9 * len(odd) and even.count(0) < 0.1 * len(even):
+            return "utf-16-le"
+        if even.count(0) > 0.9 * len(even) and odd.count(0) < 0.1 * len(odd):
+            return "utf-16-be"
+    return None
+
+
 def _lines(path: Path) -> tuple[list[str], str]:
-    for encoding in ("utf-8-sig", "cp1252", "latin-1"):
+    wide = _utf16(path)
+    for encoding in ((wide,) if wide else ("utf-8-sig", "cp1252", "latin-1")):
         try:
             with open(path, encoding=encoding) as fh:
                 lines = []
@@ -150,7 +170,9 @@ def _fields(line: str, sep: str | None) -> list[str]:
     return parts
 
 
-_TIMESTAMP = re.compile(r"^(\d{4}-\d\d-\d\d[ T])?\d{1,2}:\d\d:\d\d([.,]\d+)?Z?$")
+# an ISO time zone (Z, +01:00, +0200) is allowed: a DST switch inside a log (issue 28)
+_TIMESTAMP = re.compile(
+    r"^(\d{4}-\d\d-\d\d[ T])?\d{1,2}:\d\d:\d\d([.,]\d+)?(Z|[+-]\d\d:?\d\d)?$")
 
 
 #: Cells that loggers and spreadsheets write for a missing value; they read as NaN, so the
@@ -228,7 +250,8 @@ def _seconds(values: Any) -> np.ndarray | None:
         return None
     try:
         if text.str.contains("-").any():
-            stamps = pd.to_datetime(text, format="mixed")
+            # utc: mixed offsets (+01:00 then +02:00 across a DST switch) on one clock
+            stamps = pd.to_datetime(text, format="mixed", utc=True)
             return (stamps - stamps.iloc[0]).dt.total_seconds().to_numpy(dtype=float)
         deltas = pd.to_timedelta(text)
         seconds = (deltas - deltas.iloc[0]).dt.total_seconds().to_numpy(dtype=float)

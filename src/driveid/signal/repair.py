@@ -123,11 +123,21 @@ def check_timeline(t: np.ndarray, *, max_jitter: float | None = 0.01) -> Timelin
     if n_nonpos:
         i = first_nonpos
         kind = "duplicated" if t[i + 1] - t[i] == 0 else "decreasing"
+        back = float(t[i] - t[i + 1])
+        fix = "sort the samples by time and drop duplicated timestamps"
+        if n_nonpos == 1 and back > 100 * float(nominal):
+            # one jump back in an ordered record: sorting would scramble it (a clock set back
+            # at the end of daylight saving time, fifth hostile campaign)
+            fix = (f"the clock jumps back once, by {back:.6g} s"
+                   + (" (daylight saving time ends: export the times with their UTC offset, "
+                      "e.g. +01:00, or as seconds)" if abs(back - 3600.0) < 120.0 else
+                      " (a clock reset?)")
+                   + f"; sorting would scramble the record: add {back:.6g} s to the times "
+                   "after the jump")
         problem = (
             f"time is {kind} at samples {i} and {i + 1} (t = {float(t[i])!r} s, "
             f"{float(t[i + 1])!r} s) and "
-            f"{n_nonpos} interval(s) in all are not positive; sort the samples by time and "
-            "drop duplicated timestamps"
+            f"{n_nonpos} interval(s) in all are not positive; {fix}"
         )
     elif max_jitter is not None:
         if worst_jitter > max_jitter:
