@@ -332,6 +332,15 @@ def test_time_zones_and_a_clock_set_back_an_hour(tmp_path):
         read_record(tmp_path / "b.csv")
 
 
+def test_a_units_row_with_an_unknown_unit_is_named(tmp_path):
+    # taken as the header before: "no position column ... columns found: [1] parsec"
+    ref = decay()
+    (tmp_path / "u.csv").write_text("Time,Position,Torque\ns,parsec,N*m\n" + "".join(
+        f"{a:.6f},{b:.12f},0\n" for a, b in zip(ref.t, ref.x, strict=True)))
+    with pytest.raises(FileFormatError, match="'x' is in 'parsec', which driveid does not"):
+        read_record(tmp_path / "u.csv")
+
+
 def test_clock_times_that_cross_midnight(tmp_path):
     # 23:59:59.5 -> 00:00:00.0 was read as time going back 86399.5 s (refused, with advice
     # to sort the samples, which would scramble the record)

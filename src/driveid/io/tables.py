@@ -235,6 +235,24 @@ def _is_unit_row(parts: list[str]) -> bool:
     return known > 0
 
 
+def _unit_row_with_a_typo(parts: list[str], above: list[str], sep: str | None,
+                          name: str) -> bool:
+    """A units row with one unknown unit (``s,parsec,N*m``) under a header of names.
+
+    Taken as the header, its units were listed as the columns ("no position column ...
+    [1] parsec"); as a units row, the reader names the unit it does not know.
+    """
+    texts = [p.strip().strip("[]()") for p in parts if p.strip()]
+    known = sum(1 for p in texts if _known_unit(p) or p.lower() in _OTHER_UNITS)
+    if known < 2 or len(texts) - known != 1:
+        return False
+    header = next((line for line in reversed(above) if line.strip()), None)
+    if header is None or _is_comment(header):
+        return False
+    names = _header_fields(header, sep, name)
+    return len(names) == len(parts) and not any(_known_unit(n) for n in names)
+
+
 # units of quantities that are no record column, seen in unit rows beside known ones
 # (Maxon EPOS: 'ms;rpm;%' - a torque in % of the rated torque)
 _OTHER_UNITS = {"%", "-", "°c", "degc", "k", "bar", "pa", "kpa", "mpa", "hz", "khz", "w",
@@ -360,7 +378,9 @@ def _read_text(path: Path) -> Table:
             break
         if len(parts) > width:
             parts = parts[:width]  # named columns that stay empty in every row
-        if unit_row is None and len(parts) <= width and _is_unit_row(parts):
+        if unit_row is None and len(parts) <= width and (
+                _is_unit_row(parts) or _unit_row_with_a_typo(parts, lines[:index], sep,
+                                                             path.name)):
             unit_row = parts + [""] * (width - len(parts))
             used.add(index)
             continue
