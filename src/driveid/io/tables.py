@@ -237,7 +237,7 @@ def _is_unit_row(parts: list[str]) -> bool:
 
 def _unit_row_with_a_typo(parts: list[str], above: list[str], sep: str | None,
                           name: str) -> bool:
-    """A units row with one unknown unit (``s,parsec,N*m``) under a header of names.
+    """Tell a units row with one unknown unit (``s,parsec,N*m``) under a header of names.
 
     Taken as the header, its units were listed as the columns ("no position column ...
     [1] parsec"); as a units row, the reader names the unit it does not know.
