@@ -265,3 +265,11 @@ def test_validate_a_drive_result_whose_model_was_edited(run, tmp_path, model):
     data["diagnostics"]["model_toml"] = model
     (tmp_path / "r.json").write_text(json.dumps(data))
     run("validate", "r.json", "d.csv").assert_clean_error("model_toml")
+
+
+def test_a_pho_campaign_sampled_below_its_loop_is_refused(run):
+    # 5 Hz sampling of a 2 Hz loop: every run rejected as "never oscillated ... excite a
+    # larger motion", the wrong diagnosis
+    out = run("pho", "run", "--out", "c", "--P", "2", "--n-D", "1", "--duration", "2",
+              "--fs", "5")
+    assert out.code == 2 and "fewer than 10 times a period" in out.stderr, out.describe()

@@ -201,6 +201,16 @@ def pho_run_command(plant_name, out, P_text, P_range, D_start, D_step, n_D, x0, 
                 override="--max-runs N")  # before the progress bar opens
     from driveid.experiment.pho import CSV_BYTES_PER_SAMPLE
 
+    body = plant.params.bodies[plant.body]
+    if max(P_values) > 0:
+        # the loop rings at about sqrt((K + P)/J); at 5 Hz sampling of a 3 Hz loop every run
+        # was rejected as "never oscillated" (fifth hostile campaign)
+        f_loop = math.sqrt((body.K + max(P_values)) / body.J) / (2 * math.pi)
+        if fs < 10 * f_loop:
+            raise click.BadParameter(
+                f"--fs {fs:g} Hz samples the loop's oscillation (about {f_loop:.3g} Hz at P = "
+                f"{max(P_values):g}) fewer than 10 times a period: its peaks cannot be "
+                f"found; give --fs {10 * f_loop:.3g} or more", param_hint="--fs")
     n_samples = n_runs * (duration * fs + 1)
     if n_samples > 5e7 and not quiet:  # long but feasible: say so before the silence
         click.echo(f"PHO campaign: {n_runs} runs of {duration:g} s at {fs:g} Hz, "
