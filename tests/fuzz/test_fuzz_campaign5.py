@@ -273,3 +273,14 @@ def test_a_pho_campaign_sampled_below_its_loop_is_refused(run):
     out = run("pho", "run", "--out", "c", "--P", "2", "--n-D", "1", "--duration", "2",
               "--fs", "5")
     assert out.code == 2 and "fewer than 10 times a period" in out.stderr, out.describe()
+
+
+@pytest.mark.parametrize("option, column, words", [
+    ("--position", "t", "read as the position is in s, a unit of time"),
+    ("--force", "x", "read as the force or torque is in rad, a unit of position")])
+def test_a_column_picked_for_the_wrong_role_is_named_so(run, good_record, option, column,
+                                                        words):
+    # "column 'x' is in 's' by the header but in 'rad' by the '# meta:' line" / "'s', which
+    # driveid does not know": internal names, and seconds called unknown
+    run("identify", "logdec", str(good_record), "--mass", "1", option,
+        column).assert_clean_error(words)

@@ -98,6 +98,11 @@ def check_meta_units(header_units: Mapping[str, str], meta_units: Mapping[str, A
         a, b = _si(column, head), _si(column, meta)
         if a is not None and a == b:
             continue
+        from driveid.io.units import normalise_unit, wrong_role
+
+        wrong = wrong_role(column, normalise_unit(head)) if a is None else None
+        if wrong:  # the user picked another role's column (--position t on a driveid file)
+            raise FileFormatError(f"{source}: {wrong}")
         raise FileFormatError(
             f"{source}: column {column!r} is in {head!r} by the header but in {meta!r} by "
             "the '# meta:' line; make them agree (fix or delete the meta 'units' entry)")

@@ -19,7 +19,7 @@ import re
 from driveid.errors import FileFormatError
 
 __all__ = ["UNIT_CONVERSIONS", "ELECTRICAL_UNITS", "split_header", "normalise_unit", "to_si",
-           "known_units", "known_unit"]
+           "wrong_role", "known_units", "known_unit"]
 
 _DEG = math.pi / 180.0
 _INCH = 0.0254
@@ -208,6 +208,9 @@ def to_si(column: str, unit: str, *, source: str = "", counts_per_rev: float | N
             f"guess the gain: give it with --scale {column}=FACTOR (e.g. --scale u=200 for "
             "200 N per V; the scaled values are then taken as SI, or as the unit given with "
             f"--unit {column}=UNIT)")
+    wrong = wrong_role(column, canonical)
+    if wrong:
+        raise FileFormatError(f"{where}{wrong}")
     raise FileFormatError(
         f"{where}column {column!r} is in {unit!r}, which driveid does not know; known units "
         f"for {column!r}: {', '.join(known_units(column))}; state the right unit with --unit "
@@ -220,6 +223,41 @@ _SLASH = re.compile(r"^(?P<name>.*?\S)\s+/\s*(?P<unit>\S.*?)\s*$")
 _IN = re.compile(r"^(?P<name>.*?\S)\s+in\s+(?P<unit>\S+)\s*$")
 _GLUED_SLASH = re.compile(r"^(?P<name>[^/\s]+)/(?P<unit>[^/\s]+(?:/[^/\s]+)?)$")
 _COMMA = re.compile(r"^(?P<name>.*?\S)\s*,\s*(?P<unit>\S+)$")
+
+
+_ROLES = {"t": ("time", "--time", "--time COL"),
+          "x": ("position", "--position", "--channel x1=COL"),
+          "v": ("velocity", "--velocity", "--channel v1=COL"),
+          "u": ("force or torque", "--force", "--input COL")}
+
+
+def wrong_role(column: str, unit: str) -> str | None:
+    """Say that a column picked for one role is in a unit of another, or return None.
+
+    ``--position t`` read a time column as the position: "column 'x' is in 's', which
+    driveid does not know" named an internal column and called seconds unknown (fifth
+    hostile campaign).
+
+    Parameters
+    ----------
+    column : {"t", "x", "v", "u"}
+        The role the column was read for.
+    unit : str
+        Its unit, normalised (:func:`normalise_unit`).
+
+    Returns
+    -------
+    str or None
+        The message, or None when ``unit`` belongs to no other role either.
+    """
+    for other, table in UNIT_CONVERSIONS.items():
+        if other != column and unit in table and other in _ROLES and column in _ROLES:
+            role, option, drive = _ROLES[column]
+            return (f"the column read as the {role} is in {unit}, a unit of {_ROLES[other][0]}"
+                    f": it is likely the wrong column; choose the {role} column with "
+                    f"{option} COL (identify drive: {drive}; driveid inspect FILE lists the "
+                    "columns)")
+    return None
 
 
 def split_header(text: str) -> tuple[str, str | None]:
