@@ -284,3 +284,15 @@ def test_a_column_picked_for_the_wrong_role_is_named_so(run, good_record, option
     # driveid does not know": internal names, and seconds called unknown
     run("identify", "logdec", str(good_record), "--mass", "1", option,
         column).assert_clean_error(words)
+
+
+def test_identify_contour_with_another_circle_s_config(run, tmp_path):
+    # a 1 nm config radius on a 5 cm record: "got 0 ... record a whole revolution"
+    text = (EXAMPLES / "contour_xy.toml").read_text()
+    (tmp_path / "c.toml").write_text(text)
+    (tmp_path / "tiny.toml").write_text("\n".join(
+        "radius = 1e-9" if line.startswith("radius = ") else line
+        for line in text.splitlines()))
+    run("simulate", "contour", "c.toml", "--out", "c.csv").assert_ok()
+    run("identify", "contour", "c.csv", "--config", "tiny.toml",
+        "--no-preview").assert_clean_error("config's [path] radius is 1e-09 m")

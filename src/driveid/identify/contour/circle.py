@@ -336,6 +336,18 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
                 col = {"reference": f"{a}_ref", "position": a, "command": f"u_{a}"}[kind]
                 raise RecordError(f"the contour record lacks the {kind} of axis {a} (column "
                                   f"{col}); the friction regression needs it")
+    # the references' own radius (an algebraic circle fit, any centre, any arc)
+    rx, ry = (np.asarray(record.reference[a], float) for a in plane)
+    A = np.column_stack([2 * rx, 2 * ry, np.ones_like(rx)])
+    (cx, cy, c0), *_ = np.linalg.lstsq(A, rx**2 + ry**2, rcond=None)
+    measured = float(math.sqrt(max(c0 + cx**2 + cy**2, 0.0)))
+    if not 0.8 * path.radius <= measured <= 1.25 * path.radius:
+        # a 1 nm config radius on a 5 cm record said "got 0 samples ... record a whole
+        # revolution" (fifth hostile campaign)
+        raise IdentificationError(
+            f"the record's circle has a radius of {measured:.4g} m (a circle fitted to its "
+            f"references) but the config's [path] radius is {path.radius:.4g} m: pass the "
+            "config the record was run with (--config)")
     t = np.asarray(record.t, float)
     fs = 1.0 / float(np.median(np.diff(t)))
     cutoff = min(50.0, fs / 20.0) if cutoff_hz is None else float(cutoff_hz)
