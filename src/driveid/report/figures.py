@@ -181,7 +181,7 @@ def save_figure(fig: Any, path: str | Path, *, overwrite: bool = False) -> Path:
         pyplot().close(fig)
         raise FileFormatError(
             f"cannot write a figure as {path.name}: unknown image suffix {path.suffix!r}; "
-            f"use one of {', '.join('.' + k for k in ('png', 'pdf', 'svg'))}")
+            f"use one of {', '.join('.' + k for k in sorted(supported))}")
     try:
         atomic_save(path, lambda fh: fig.savefig(fh, format=fmt, dpi=120),
                     overwrite=overwrite)
