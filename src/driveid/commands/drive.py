@@ -175,7 +175,7 @@ def _warn_unstable_loop(params, result) -> None:
     (or P < 0) reached |x| = 8e176 with nothing on stderr (fifth hostile campaign).
     """
     fb = params.feedback
-    if fb is None:
+    if fb is None or result.aborted:  # an abort is said on its own line
         return
     err = np.asarray(result.x[fb.body], float) - fb.reference
     fifth = err.size // 5

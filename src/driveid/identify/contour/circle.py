@@ -338,6 +338,8 @@ def estimate_contour(record: ContourRecord, config: ContourConfig, *,
                                   f"{col}); the friction regression needs it")
     # the references' own radius (an algebraic circle fit, any centre, any arc)
     rx, ry = (np.asarray(record.reference[a], float) for a in plane)
+    finite = np.isfinite(rx) & np.isfinite(ry)
+    rx, ry = rx[finite], ry[finite]
     A = np.column_stack([2 * rx, 2 * ry, np.ones_like(rx)])
     (cx, cy, c0), *_ = np.linalg.lstsq(A, rx**2 + ry**2, rcond=None)
     measured = float(math.sqrt(max(c0 + cx**2 + cy**2, 0.0)))
