@@ -9,6 +9,8 @@ Rules (issue 12)
 * A symbolic link at the destination is never followed: without ``overwrite`` it counts as
   an existing file (a dangling link too) and the write is refused; with ``overwrite`` the
   rename replaces the *link*, never the file it points to.
+* A device, pipe or socket at the destination is never replaced, ``overwrite`` or not
+  (the rename would replace the node itself: ``/dev/full`` as root, issue 28).
 * Without ``overwrite`` the final step is ``os.link`` (fails if the name appeared
   meanwhile), so a file created by someone else between the check and the rename is not
   lost either.
@@ -65,10 +67,10 @@ def check_destination(path: str | Path, *, overwrite: bool = False,
     ------
     OverwriteError
         If something exists at ``path`` (a file, a link, a dangling link) and ``overwrite``
-        is False.
+        is False; if ``path`` is a device, pipe or socket (never replaced), or ``"-"``.
     IsADirectoryError
         If ``path`` is a folder (a real one; a link to a folder is replaced under
-        ``overwrite``).
+        ``overwrite``), or its spelling ends in ``/``.
     """
     text = os.fspath(path)
     if text == "-":
