@@ -341,6 +341,29 @@ def test_a_units_row_with_an_unknown_unit_is_named(tmp_path):
         read_record(tmp_path / "u.csv")
 
 
+def test_thousands_separators_quoted_and_german(tmp_path):
+    # "572,845.832" (quoted, in a , file) and 572.845,832 (a ; file with decimal commas)
+    # were "no block of numeric rows" / "expected 4 fields"; mdeg was an unknown unit
+    ref = decay()
+    mdeg = 1e3 * np.degrees(ref.x) + 5e5  # positions of 6 digits: every one grouped
+
+    def grouped(v, thousands, decimal):
+        whole, frac = f"{v:.3f}".split(".")
+        sign, whole = ("-", whole[1:]) if whole.startswith("-") else ("", whole)
+        parts = [whole[max(i - 3, 0):i] for i in range(len(whole), 0, -3)][::-1]
+        return sign + thousands.join(parts) + decimal + frac
+
+    (tmp_path / "en.csv").write_text("time [s],position [mdeg],torque [N*m]\n" + "".join(
+        f'{a:.4f},"{grouped(b, ",", ".")}",0\n' for a, b in zip(ref.t, mdeg, strict=True)))
+    (tmp_path / "de.csv").write_text("Zeit [s];Position [mdeg];Moment [N·m]\n" + "".join(
+        f"{a:.4f};{grouped(b, '.', ',')};0\n".replace(f"{a:.4f}", f"{a:.4f}".replace(".", ","))
+        for a, b in zip(ref.t, mdeg, strict=True)))
+    for name in ("en.csv", "de.csv"):
+        rec = read_record(tmp_path / name)
+        # the file holds 3 decimals of a millidegree: 1e-3 mdeg = 1.7e-8 rad
+        np.testing.assert_allclose(rec.x, np.radians((mdeg.round(3)) / 1e3), atol=1e-12)
+
+
 def test_clock_times_that_cross_midnight(tmp_path):
     # 23:59:59.5 -> 00:00:00.0 was read as time going back 86399.5 s (refused, with advice
     # to sort the samples, which would scramble the record)

@@ -10,7 +10,8 @@ nothing of records: choosing columns, converting units and validating is
 Formats (chosen by suffix):
 
 - delimited text (``.csv .txt .dat .tsv .asc .prn``), read with :func:`pandas.read_csv`:
-  delimiter sniffed among ``,`` ``;`` tab and whitespace, decimal comma detected, BOM,
+  delimiter sniffed among ``,`` ``;`` tab and whitespace, decimal comma detected, thousands
+  grouping (``"1,234.5"`` quoted, ``1.234,5``), BOM, UTF-16 (Excel "Unicode text"),
   preamble/metadata lines before the header skipped (the header is the line just above the
   first run of numeric rows), comment lines (``#``), trailing empty columns, units in the
   header in every spelling of :func:`driveid.io.units.split_header`;
@@ -164,7 +165,15 @@ def _lines(path: Path) -> tuple[list[str], str]:
 
 
 def _fields(line: str, sep: str | None) -> list[str]:
-    parts = line.split() if sep is None else [f.strip().strip('"') for f in line.split(sep)]
+    if sep is None:
+        parts = line.split()
+    elif '"' in line:  # a quoted field may hold the delimiter ("572,845.832" in a , file)
+        try:
+            parts = [f.strip() for f in next(csv.reader([line], delimiter=sep))]
+        except csv.Error:  # a field over the csv limit: the plain split, as before
+            parts = [f.strip().strip('"') for f in line.split(sep)]
+    else:
+        parts = [f.strip() for f in line.split(sep)]
     while parts and not parts[-1]:
         parts.pop()  # trailing empty columns (a delimiter at the end of every row)
     return parts
@@ -180,6 +189,18 @@ _TIMESTAMP = re.compile(
 _MISSING = {"nan", "na", "n/a", "#n/a", "-", "--", "null", "none", "#value!", "#div/0!"}
 
 
+#: A number with thousands grouping, by decimal mark: 572,845.832 and 572.845,832.
+_GROUPED = {".": re.compile(r"^[+-]?\d{1,3}(,\d{3})+(\.\d*)?$"),
+            ",": re.compile(r"^[+-]?\d{1,3}(\.\d{3})+(,\d*)?$")}
+
+
+def _plain(part: str, decimal: str) -> str:
+    """Return the field as Python reads a float: no grouping, a decimal point."""
+    if _GROUPED[decimal].match(part):
+        part = part.replace("," if decimal == "." else ".", "")
+    return part.replace(",", ".") if decimal == "," else part
+
+
 def _numeric(parts: list[str], decimal: str, missing_only: bool = False) -> bool:
     """Tell whether a line's fields are numbers, timestamps or missing-value marks.
 
@@ -192,7 +213,7 @@ def _numeric(parts: list[str], decimal: str, missing_only: bool = False) -> bool
         if not part:
             continue
         try:
-            float(part.replace(",", ".") if decimal == "," else part)
+            float(_plain(part, decimal))
         except ValueError:
             if part.lower() in _MISSING:
                 continue
@@ -392,11 +413,15 @@ def _read_text(path: Path) -> Table:
         break
     if header is None and unit_row is not None:
         header, unit_row = unit_row, None  # a header whose names all look like units
+    grouped = any(_GROUPED[decimal].match(part) for line in lines[start:]
+                  for part in _fields(line, sep))
+    thousands = ("," if decimal == "." else ".") if grouped else None
     try:
         frame = pd.read_csv(path, sep=r"\s+" if sep is None else sep, decimal=decimal,
                             header=None, skiprows=start, comment="#", encoding=encoding,
                             engine="python" if sep is None else "c", skip_blank_lines=True,
-                            usecols=range(width), names=list(range(width)))
+                            usecols=range(width), names=list(range(width)),
+                            thousands=thousands)
     except (ValueError, pd.errors.ParserError) as exc:
         raise FileFormatError(
             f"{path.name}: rows below the header cannot be parsed ({exc}); every row must "

@@ -32,6 +32,7 @@ UNIT_CONVERSIONS: dict[str, dict[str, tuple[str, float]]] = {
     "t": {"s": ("s", 1.0), "ms": ("s", 1e-3), "µs": ("s", 1e-6), "ns": ("s", 1e-9),
           "min": ("s", 60.0), "h": ("s", 3600.0)},
     "x": {"rad": ("rad", 1.0), "mrad": ("rad", 1e-3), "deg": ("rad", _DEG),
+          "mdeg": ("rad", 1e-3 * _DEG),
           "rev": ("rad", 2 * math.pi), "m": ("m", 1.0), "cm": ("m", 1e-2), "mm": ("m", 1e-3),
           "µm": ("m", 1e-6), "nm": ("m", 1e-9), "in": ("m", _INCH), "ft": ("m", _FOOT)},
     "v": {"rad/s": ("rad/s", 1.0), "deg/s": ("rad/s", _DEG), "rpm": ("rad/s", math.pi / 30),
@@ -56,6 +57,7 @@ _SPELLINGS = {
     # angle and length
     "radian": "rad", "radians": "rad", "°": "deg", "degree": "deg", "degrees": "deg",
     "grad": "deg", "revs": "rev", "revolution": "rev", "revolutions": "rev", "turn": "rev",
+    "millidegree": "mdeg", "millidegrees": "mdeg",
     "turns": "rev", "r": "rev", "um": "µm", "μm": "µm", "micron": "µm", "microns": "µm",
     "inch": "in", "inches": "in", '"': "in", "foot": "ft", "feet": "ft", "metre": "m",
     "meter": "m", "millimetre": "mm", "millimeter": "mm",
