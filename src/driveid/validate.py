@@ -61,7 +61,7 @@ from driveid.identify.free_decay._free_response import (
 from driveid.io.record import Record
 from driveid.sim import OscillatorParams, simulate_free_decay
 
-__all__ = ["Comparison", "compare", "simulate", "whiteness"]
+__all__ = ["Comparison", "compare", "fit_percent", "simulate", "whiteness"]
 
 _FREE_DECAY = FREE_DECAY
 #: Ljung–Box p-value below which residuals are called not white [-].
@@ -161,6 +161,25 @@ class Comparison:
         ax[2].set_ylabel("residual autocorrelation [-]")
         ax[2].set_title(f"Ljung–Box p = {self.whiteness['p_value']:.3g}")
         return fig
+
+
+def fit_percent(y: np.ndarray, residual: np.ndarray) -> float:
+    """Return ``100·(1 - ‖residual‖/‖y - mean y‖)`` [%] (NaN for a constant ``y``).
+
+    Parameters
+    ----------
+    y : ndarray
+        Measured values [any unit].
+    residual : ndarray
+        ``y`` minus the simulated values [same unit].
+
+    Returns
+    -------
+    float
+        The normalised root-mean-square fit; 100 is perfect.
+    """
+    spread = float(np.linalg.norm(y - np.mean(y)))
+    return 100.0 * (1.0 - float(np.linalg.norm(residual)) / spread) if spread > 0 else math.nan
 
 
 def whiteness(residual: np.ndarray, lags: int = 20) -> dict[str, Any]:
@@ -451,8 +470,7 @@ def compare(record: Record, estimate: Estimate, *, index: int | None = None,
     y = np.asarray(record.x, float)
     resid = y - y_hat
     _refuse_divergence(y, y_hat, model)
-    spread = float(np.linalg.norm(y - np.mean(y)))
-    fit = 100.0 * (1.0 - float(np.linalg.norm(resid)) / spread) if spread > 0 else math.nan
+    fit = fit_percent(y, resid)
     white = whiteness(resid, lags)
     prewhitened = _prewhitened(resid, estimate, held_out, lags)
     if prewhitened is not None:

@@ -24,7 +24,7 @@ from driveid.errors import IdentificationError
 from driveid.identify.core.estimate import Estimate
 from driveid.identify.drive._drive_model import DriveProblem, DriveRecord, channel_index
 from driveid.sim.config import parse_drive_config
-from driveid.validate import Comparison, whiteness
+from driveid.validate import Comparison, fit_percent, whiteness
 
 __all__ = ["compare_drive", "drive_of"]
 
@@ -90,8 +90,7 @@ def compare_drive(record: DriveRecord, estimate: Estimate, *, index: int | None 
     for row, name in enumerate(problem.channels):
         y, y_hat = record.channels[name], simulated[row]
         resid = y - y_hat
-        spread = float(np.linalg.norm(y - np.mean(y)))
-        fit = 100.0 * (1.0 - float(np.linalg.norm(resid)) / spread) if spread > 0 else math.nan
+        fit = fit_percent(y, resid)
         white = whiteness(resid, lags)
         notes = []
         if not white["white"]:

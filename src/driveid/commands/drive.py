@@ -15,7 +15,7 @@ from driveid.commands import clean_errors
 from driveid.commands._checks import FilePath, PositiveFloat
 from driveid.errors import ConfigError
 from driveid.io import ensure_writable
-from driveid.sim.config import RunOptions, load_drive_config, simulate_config
+from driveid.sim.config import RunOptions, parse_drive_config, read_toml, simulate_config
 from driveid.sim.drive import (
     DEFAULT_MAX_STEPS,
     DriveResult,
@@ -115,9 +115,10 @@ def drive_command(config, preset_name, duration, max_steps, out, overwrite, forc
     if (config is None) == (preset_name is None):
         raise click.UsageError("give either a CONFIG.toml file or --preset NAME (not both)")
     if config is not None:
-        params, options = load_drive_config(config)
+        doc = read_toml(config, "drive config")  # once: parsed, and asked for a preset
+        params, options = parse_drive_config(doc, source=Path(config).name)
         source = str(config)
-        options = _start_a_resting_run(config, params, options)
+        options = _start_a_resting_run(doc, params, options)
     else:
         params = preset(preset_name)
         units = preset_units(preset_name)
@@ -199,7 +200,7 @@ def _release(units: str, n_bodies: int) -> tuple[float, ...]:
     return (1.0 if units == "rad" else 0.1,) * n_bodies
 
 
-def _start_a_resting_run(config, params, options):
+def _start_a_resting_run(doc, params, options):
     """Release a preset named in a TOML as ``--preset`` does, or warn that nothing moves.
 
     ``preset = "testbed-a"`` alone wrote a record of zeros, while the example TOML calls it
@@ -210,9 +211,7 @@ def _start_a_resting_run(config, params, options):
         return options
     if params.feedback is not None and params.feedback.reference != 0.0:
         return options
-    from driveid.sim.config import read_toml
-
-    if "preset" in read_toml(config, "drive config"):
+    if "preset" in doc:
         x0 = _release(options.units, params.n_bodies)
         click.echo(f"note: [run] sets no x0, v0 or torque: released from x0 = {x0[0]:g} "
                    f"{options.units}, as --preset does", err=True)

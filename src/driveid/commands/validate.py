@@ -210,25 +210,23 @@ def validate_command(result, files, lags, inertia, as_json, figure, overwrite, r
 def _compare_drive(files, estimate, record_opts, lags):
     """Read each FILE as the drive fit did and compare every channel (``FILE:x1`` ...)."""
     from driveid.commands._record_options import split_window_spec
-    from driveid.identify.drive.records import read_drive_record
+    from driveid.commands.identify_drive import read_drive_records
     from driveid.io.reading import file_sha256
     from driveid.validate_drive import compare_drive, drive_of
 
     params, _ = drive_of(estimate)
     inputs = [dict(i) for i in estimate.inputs]
+    hashes = [i.get("sha256") for i in inputs]
     labels, comparisons = [], []
     for k, spec in enumerate(files):
         path, window = split_window_spec(spec)
         digest = file_sha256(path) if path.is_file() else None
-        hashes = [i.get("sha256") for i in inputs]
         index = hashes.index(digest) if digest and digest in hashes else None
         stored = inputs[index if index is not None else min(k, len(inputs) - 1)] \
             if inputs else {}
         columns = dict(stored.get("columns") or {})
-        record = read_drive_record(
-            path, read_kwargs=record_opts.read_kwargs(None if window == (None, None)
-                                                      else window),
-            time_column=record_opts.columns.get("t"),
+        (record,) = read_drive_records(
+            [spec], record_opts,
             channels={c: f for c, f in columns.items() if c[:1] in "xv" and c[1:].isdigit()},
             input_column=columns.get("u"), n_bodies=params.n_bodies)
         if index is not None and window != (None, None):

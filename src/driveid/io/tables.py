@@ -475,12 +475,11 @@ def _refuse_ragged(name: str, lines: list[str], start: int, sep: str | None, nam
     Without this the widest row sets the width, the header no longer matches it and the
     file reads as headerless ("no time column"), which names the wrong problem.
     """
-    widths = [len(_fields(line, sep)) for line in lines[start:]
-              if line.strip() and not _is_comment(line)]
-    if named not in widths:
+    rows = [(start + 1 + i, len(_fields(line, sep))) for i, line in enumerate(lines[start:])
+            if line.strip() and not _is_comment(line)]  # (1-based line, fields)
+    if named not in (width_ for _, width_ in rows):
         return  # every row is wider: unnamed columns, read by index as before
-    wide = [start + 1 + i for i, line in enumerate(lines[start:])
-            if line.strip() and not _is_comment(line) and len(_fields(line, sep)) > named]
+    wide = [number for number, width_ in rows if width_ > named]
     raise FileFormatError(
         f"{name}: the header names {named} columns but line {wide[0]}"
         f"{f' (and {len(wide) - 1} more of the first {len(lines)} lines)' if len(wide) > 1 else ''}"

@@ -447,7 +447,6 @@ def contour_metrics(t: np.ndarray, p1: np.ndarray, p2: np.ndarray, path: CircleP
 
 #: Measured cost of one control period of one axis (the Python controller call and the
 #: integration between calls): 33 µs at 200 kHz on this 2-core machine [s].
-#: Seconds of one control period of the Python controller loop, one core (measured) [s].
 SECONDS_PER_PERIOD = 3.5e-5
 #: Default budget of control periods (Python controller calls) of one run, all axes [-]:
 #: about 6 minutes; the example's circle takes 1.3e4.

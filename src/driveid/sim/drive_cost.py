@@ -161,12 +161,11 @@ def estimate_drive_cost(params: DriveParams, *, duration: float, fs: float = 100
     memory = 8.0 * n_out * (8 * nb + 12)
     seconds = n_steps * nb * _SECONDS_PER_STEP_BODY + n_out * 1e-7 * nb
     history = 0.0
+    h = 1.0 / (fs * n_sub)
     fb = params.feedback
     if fb is not None:  # the kernel's history: every grid step, and a ring of the delay
-        h = 1.0 / (fs * n_sub)
         ring = math.ceil(fb.delay / h - 1e-9) + 3 if fb.delay > 0 else 0
         history = 32.0 * (n_steps + 2 + 2 * ring)
-    h = 1.0 / (fs * n_sub)
     rings = {i: 32.0 * (math.ceil(b.memory / h - 1e-9) + 3)
              for i, b in enumerate(params.bodies) if b.memory > 0}
     return DriveCost(n_samples=n_out, n_steps=n_steps, step=h,

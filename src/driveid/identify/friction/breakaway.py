@@ -233,8 +233,6 @@ def rising_friction_from_breakaways(estimate: Estimate) -> Estimate:
                                     np.array([r["force"] for r in rows]), unit=unit)
 
 
-
-
 def _v_break_advice(rec: Record, v_break: float, window: float | None) -> str:
     """Say which way v_break is off: below the noise's rate, above every motion, or fine.
 

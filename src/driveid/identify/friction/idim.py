@@ -116,16 +116,16 @@ def _refuse_repeated_regressors(blocks, regressors, p, model, offset) -> None:
     """
     if not regressors:
         return
-    W = np.vstack([b[0] for b in blocks])
+    gram = sum(b[0].T @ b[0] for b in blocks)  # p x p: no stacked copy of the rows
     names = list(_names(model, False, "N")[0])
     if offset is not None and model == "symmetric":
         names = names[:-1]
     names += [f"k[{r}]" for r in regressors]
-    norms = np.linalg.norm(W, axis=0)
+    norms = np.sqrt(np.diag(gram))
     for j in range(p - len(regressors), p):
         for k in range(j):
             if norms[j] > 0 and norms[k] > 0 and \
-                    abs(W[:, j] @ W[:, k]) >= (1 - 1e-9) * norms[j] * norms[k]:
+                    abs(gram[j, k]) >= (1 - 1e-9) * norms[j] * norms[k]:
                 raise ParameterError(
                     f"the regressor {regressors[j - p + len(regressors)]!r} is proportional "
                     f"to the column of {names[k]} on this record, so their coefficients "
