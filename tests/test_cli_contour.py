@@ -101,3 +101,17 @@ def test_simulate_contour_refuses_a_run_beyond_budget_or_memory(tmp_path, change
     assert line.startswith("error: simulate contour") and words in line
     assert "[path] revolutions" in line and len(line.splitlines()) == 1
     assert not (tmp_path / "c.csv").exists()
+
+
+def test_a_cut_circle_is_refused_in_contour_words_not_idim_s(workdir, tmp_path):
+    # the circle's decimation is chosen by `identify contour`, not by the user, so IDIM's
+    # "--decimate 1" advice would name an option this command does not have
+    lines = (workdir / "circle.csv").read_text().splitlines()
+    head = [ln for ln in lines if ln.startswith("#")]
+    body = [ln for ln in lines if not ln.startswith("#")]
+    (tmp_path / "cut.csv").write_text("\n".join(head + body[:100]) + "\n")
+    res = CliRunner().invoke(cli, ["identify", "contour", str(tmp_path / "cut.csv"),
+                                   "--config", str(workdir / "axes.toml"), "--no-preview"])
+    assert res.exit_code == 2, res.output
+    assert "record the whole circle" in res.output and "--decimate" not in res.output
+    assert "Traceback" not in res.output

@@ -250,3 +250,20 @@ def test_validate_simulates_an_identified_drive_on_its_own_and_held_out_records(
     result.write_text(json.dumps(data))
     bad = CliRunner().invoke(cli, ["validate", str(result), str(held_csv)])
     assert bad.exit_code == 0 and "not white" in bad.output, bad.output
+
+
+def test_a_nan_in_a_drive_channel_names_the_file_s_column(tmp_path):
+    # the Record knows its roles (x, v, u) only: the message named 'x' for the file's x1
+    _, rec = _record(tmp_path)
+    lines = rec.read_text().splitlines()
+    first = next(i for i, ln in enumerate(lines) if not ln.startswith("#")) + 1
+    cells = lines[first + 49].split(",")
+    cells[1] = "nan"
+    lines[first + 49] = ",".join(cells)
+    rec.write_text("\n".join(lines) + "\n")
+    for args in (["identify", "drive", str(tmp_path / "a.toml"), str(rec), "--estimate",
+                  "body1.J"], ["identify", "logdec", str(rec)]):
+        res = CliRunner().invoke(cli, args)
+        assert res.exit_code == 2, res.output
+        assert "column 'x1' has 1 non-finite value(s)" in res.output
+        assert "first at sample 49" in res.output and "Traceback" not in res.output

@@ -236,16 +236,19 @@ def _axis_friction(rec, name: str, config: ContourConfig, speed: float, cutoff_h
         t, x, u = 0.5 * (t[1:] + t[:-1]), 0.5 * (x[1:] + x[:-1]), u[:-1]
     record = Record(t=t, x=x, u=u, meta={"units": {"x": "m", "u": "N"},
                                          "source": f"contour axis {name}"}, max_jitter=None)
-    from driveid.errors import RecordError
+    from driveid.identify.friction.idim import IdimRecordTooShort
 
     try:
         est = estimate_idim(record, model="symmetric", cutoff_hz=cutoff_hz, decimate=decimate,
                             edge=max(5, int(0.05 * t.size / decimate)), min_speed=speed,
                             sensitivity=False)
-    except RecordError as exc:  # IDIM's advice names its own CLI option (--decimate)
-        raise RecordError(f"axis {name}: " + str(exc).replace(
-            "(CLI: --decimate 1)", f"(decimate=1; the circle gave {t.size} samples: check "
-            "that the config's path matches the record)")) from None
+    except IdimRecordTooShort as exc:  # the decimation here is not a user's option
+        raise RecordError(
+            f"axis {name}: the circle gave {t.size} samples, too few for IDIM after dropping "
+            f"{exc.dropped} edge samples and decimating by {exc.decimate} (need >= "
+            f"{exc.need}; got {exc.got}): record the whole circle, and check that the "
+            "config's path matches the record"
+        ) from None
     return est, {"force": np.asarray(est.data_used["force"]),
                  "predicted": np.asarray(est.data_used["predicted"])}
 

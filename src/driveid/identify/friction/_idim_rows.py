@@ -19,10 +19,26 @@ from driveid.signal.differentiate import differentiate, zero_phase_lowpass
 from driveid.signal.envelope import block_decimate
 from driveid.signal.steady import standstill_mask
 
-__all__ = ["MODELS", "idim_regressor"]
+__all__ = ["MODELS", "IdimRecordTooShort", "idim_regressor"]
 
 #: Friction models understood by :func:`driveid.identify.friction.idim.estimate_idim`.
 MODELS = ("symmetric", "asymmetric")
+
+
+class IdimRecordTooShort(RecordError):
+    """Too few rows are left after the edges are dropped and the rows decimated.
+
+    Carries the counts, so that a caller whose decimation is not the user's own option
+    (``identify contour``) can word the fix itself: ``dropped`` edge samples at each end,
+    ``decimate``, ``need`` and ``got`` rows [-].
+    """
+
+    def __init__(self, dropped: int, decimate: int, need: int, got: int) -> None:
+        self.dropped, self.decimate, self.need, self.got = dropped, decimate, need, got
+        super().__init__(
+            f"record too short for IDIM after dropping {dropped} edge samples and decimating "
+            f"by {decimate}; need >= {need} samples; got {got}: record a longer run, "
+            "or lower the decimation (CLI: --decimate 1)")
 
 
 def _check_settings(model: str, cutoff_hz: float, decimate: int, edge: int) -> None:
@@ -165,11 +181,7 @@ def idim_regressor(
     v, a, y, t = v[sl], a[sl], y[sl], record.t[sl]
     extra = [c[sl] for c in extra]
     if v.size < min_len:
-        raise RecordError(
-            f"record too short for IDIM after dropping {cut} edge samples and decimating "
-            f"by {decimate}; need >= {min_len} samples; got {v.size}: record a longer run, "
-            "or lower the decimation (CLI: --decimate 1)"
-        )
+        raise IdimRecordTooShort(cut, int(decimate), min_len, int(v.size))
     # one column at a time: decimating each equals decimating the stacked n x p matrix,
     # which held p full columns plus the filter's padded copies (issue 12)
     def same(column: np.ndarray) -> np.ndarray:

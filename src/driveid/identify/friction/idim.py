@@ -32,6 +32,7 @@ from driveid.identify.friction._idim_eiv import row_noise
 from driveid.identify.friction._idim_noise import _held, _lag1, _solve
 from driveid.identify.friction._idim_rows import (
     MODELS,
+    IdimRecordTooShort,
     idim_regressor,
 )
 from driveid.io.record import Record
@@ -42,6 +43,7 @@ __all__ = [
     "simulate_idim_model",
     "IdimValidation",
     "IdimSimulation",
+    "IdimRecordTooShort",
     "idim_regressor",
     "MODELS",
 ]
