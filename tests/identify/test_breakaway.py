@@ -53,6 +53,19 @@ def test_lugre_creep_onset_is_reported_apart_from_breakaway():
     assert math.isfinite(est.stderr("fs_plus"))
 
 
+def test_a_creep_onset_not_seen_is_left_out_and_said_not_printed_as_nan():
+    # a rigid static-map body has no presliding: with v_break low the breakaway sample
+    # comes before any displacement, and creep_plus was NaN with an error bar, no word
+    rng = np.random.default_rng(2)
+    body = BodyParams(J=1e-3, c_mean=1e-3, fk_mean=0.04, fs_mean=0.05)
+    recs = [_ramp(s, rng, body) for s in (1, -1)]
+    est = estimate_breakaway_sliding(recs, v_break=0.001)
+    assert "creep_plus" not in est.params and "creep_minus" not in est.params
+    assert all(math.isfinite(p.value) for p in est.params.values())
+    assert sum("creep onset is not resolved" in w for w in est.warnings) == 2
+    assert est.value("fs_plus") == pytest.approx(0.05, rel=0.02)
+
+
 def test_breakaway_errors():
     t = np.arange(2000) / 1000.0
     rec = Record(t=t, x=np.zeros_like(t), u=0.01 * t + 0.001)

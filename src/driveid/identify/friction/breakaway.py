@@ -73,10 +73,12 @@ def estimate_breakaway_sliding(
     Estimate
         ``fs_plus``, ``fs_minus`` (magnitudes) [N or N·m], ``fs_mean``, ``fs_delta`` of
         the directions found, ``creep_plus``/``creep_minus`` (force at the creep onset)
-        [N or N·m]. Standard errors: the spread over repeated ramps (``std/√n``); with one
-        ramp the force change over one sample and the rate window, with a warning that it
-        is a resolution, not a statistical error. ``data_used["ramps"]``: one dict per
-        ramp with ``record``, ``direction``, ``index``, ``force``, ``creep_force``,
+        [N or N·m], left out with a warning where no ramp of that direction moved more
+        than ``x_creep`` before gross sliding. Standard errors: the spread over repeated
+        ramps (``std/√n``); with one ramp the force change over one sample and the rate
+        window, with a warning that it is a resolution, not a statistical error.
+        ``data_used["ramps"]``: one dict per ramp with ``record``, ``direction``,
+        ``index``, ``force``, ``creep_force``, ``x_creep`` (the threshold used) and
         ``dwell`` (time at rest before the ramp [s]).
 
     Raises
@@ -129,8 +131,8 @@ def estimate_breakaway_sliding(
         c = np.array([r["creep_force"] for r in rows])
         if f.size > 1:
             fse = float(f.std(ddof=1) / math.sqrt(f.size))
-            cse = float(np.nanstd(c, ddof=1) / math.sqrt(f.size)) if np.sum(
-                np.isfinite(c)) > 1 else math.nan
+            n_c = int(np.sum(np.isfinite(c)))
+            cse = float(np.nanstd(c, ddof=1) / math.sqrt(n_c)) if n_c > 1 else math.nan
         else:
             fse, cse = rows[0]["resolution"], rows[0]["resolution"]
             warnings.append(f"one {tag} ramp: the standard error of fs_{tag} is the force "
@@ -140,8 +142,15 @@ def estimate_breakaway_sliding(
             warnings += few_repeats_warning(int(f.size), f"{tag} ramps")
         stats[tag] = (float(f.mean()), fse)
         params[f"fs_{tag}"] = Parameter(float(f.mean()), fse, fu)
-        params[f"creep_{tag}"] = Parameter(float(np.nanmean(c)) if np.any(np.isfinite(c))
-                                           else math.nan, cse, fu)
+        if np.any(np.isfinite(c)):
+            params[f"creep_{tag}"] = Parameter(float(np.nanmean(c)), cse, fu)
+        else:  # a NaN with an error bar said nothing (before 2026-11-28)
+            xc = min(r["x_creep"] for r in rows)
+            warnings.append(
+                f"no {tag} ramp moved more than x_creep = {xc:.3g} {xu} from rest before "
+                f"gross sliding, so the creep onset is not resolved and creep_{tag} is not "
+                "reported: the contact shows no presliding at this position resolution "
+                "(a smaller x_creep, CLI --x-creep, looks for a smaller one)")
     if "plus" in stats and "minus" in stats:
         (fp, ep), (fm, em) = stats["plus"], stats["minus"]
         se = 0.5 * math.hypot(ep, em)
@@ -192,7 +201,8 @@ def _ramps(rec: Record, k: int, v_break: float, window: float | None,
         out.append({"record": k, "direction": s, "index": int(i_b),
                     "time": float(rec.t[i_b]), "force": float(abs(u[i_b])),
                     "creep_force": float(abs(u[i_c])) if i_c >= 0 else math.nan,
-                    "creep_index": int(i_c), "dwell": float(rec.t[a] - t_rest),
+                    "creep_index": int(i_c), "x_creep": float(xc),
+                    "dwell": float(rec.t[a] - t_rest),
                     "resolution": float(du * max(1.0, w / 2) / math.sqrt(3.0))})
     return out
 
