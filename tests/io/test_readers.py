@@ -364,6 +364,29 @@ def test_thousands_separators_quoted_and_german(tmp_path):
         np.testing.assert_allclose(rec.x, np.radians((mdeg.round(3)) / 1e3), atol=1e-12)
 
 
+def test_fortran_d_exponents_with_points_and_decimal_commas(tmp_path):
+    # Fortran's list-directed output writes 1.000000000D-03; such a file was refused as
+    # "no block of numeric rows" (fifth campaign, left open until 2026-11-28)
+    ref = decay()
+
+    def d(v, decimal="."):
+        return f"{v:.12E}".replace("E", "D").replace(".", decimal)
+
+    (tmp_path / "f.csv").write_text("t [s],x [rad]\n" + "".join(
+        f"{d(a)},{d(b)}\n" for a, b in zip(ref.t, ref.x, strict=True)))
+    (tmp_path / "de.csv").write_text("t [s];x [rad]\n" + "".join(
+        f"{d(a, ',')};{d(b, ',')}\n" for a, b in zip(ref.t, ref.x, strict=True)))
+    # lower-case d and a mixed column (plain numbers beside D exponents) read too
+    (tmp_path / "mix.csv").write_text("t [s],x [rad]\n" + "".join(
+        f"{float(a)!r},{d(b).lower() if k % 2 else repr(float(b))}\n"
+        for k, (a, b) in enumerate(zip(ref.t, ref.x, strict=True))))
+    for name in ("f.csv", "de.csv", "mix.csv"):
+        rec = read_record(tmp_path / name)
+        # 13 significant digits written: relative 5e-13 of values below 1.1 rad
+        np.testing.assert_allclose(rec.x, ref.x, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rec.t, ref.t, rtol=1e-12)
+
+
 def test_clock_times_that_cross_midnight(tmp_path):
     # 23:59:59.5 -> 00:00:00.0 was read as time going back 86399.5 s (refused, with advice
     # to sort the samples, which would scramble the record)

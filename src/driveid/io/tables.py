@@ -194,11 +194,30 @@ _GROUPED = {".": re.compile(r"^[+-]?\d{1,3}(,\d{3})+(\.\d*)?$"),
             ",": re.compile(r"^[+-]?\d{1,3}(\.\d{3})+(,\d*)?$")}
 
 
+#: A Fortran double-precision exponent (1.000000D-03, 5,0d+02 with a decimal comma).
+_FORTRAN = re.compile(r"^([+-]?(?:\d+[.,]?\d*|[.,]\d+))[dD]([+-]?\d+)$")
+
+
 def _plain(part: str, decimal: str) -> str:
-    """Return the field as Python reads a float: no grouping, a decimal point."""
+    """Return the field as Python reads a float: no grouping, a decimal point, an E."""
     if _GROUPED[decimal].match(part):
         part = part.replace("," if decimal == "." else ".", "")
+    part = _FORTRAN.sub(r"\1e\2", part)
     return part.replace(",", ".") if decimal == "," else part
+
+
+def _fortran_column(cells: Any, decimal: str) -> np.ndarray | None:
+    """Read a column of Fortran ``D`` exponents, or None when it has none."""
+    import pandas as pd
+
+    text = pd.Series(cells).astype(str).str.strip()
+    found = text.str.match(_FORTRAN.pattern)
+    if not found.any():
+        return None
+    text = text.str.replace(_FORTRAN.pattern, r"\1e\2", regex=True)
+    if decimal == ",":
+        text = text.str.replace(",", ".", regex=False)
+    return pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
 
 
 def _numeric(parts: list[str], decimal: str, missing_only: bool = False) -> bool:
@@ -454,6 +473,10 @@ def _read_text(path: Path) -> Table:
             repeated.setdefault(name, [name]).append(unique)
         name = unique
         values = pd.to_numeric(frame[i], errors="coerce").to_numpy(dtype=float)
+        if not pd.api.types.is_numeric_dtype(frame[i]) and np.isnan(values).any():
+            fortran = _fortran_column(frame[i], decimal)
+            if fortran is not None:
+                values = fortran
         if np.isnan(values).all() and frame[i].notna().any():
             stamps = _seconds(frame[i].dropna())
             if stamps is not None and stamps.size == values.size:
