@@ -136,7 +136,7 @@ def _setup(start_off: float, design: str = "testbed", duration: float | None = N
 
 def _one_fit(seed: int, start_off: float, noise: float, counts_per_rev: float,
              design: str = "testbed", duration: float | None = None,
-             pieces: float | None = None, segment: float = 0.5):
+             pieces: float | None = None, segment: float = 0.5, paths: int | None = None):
     """One noise realisation: (seconds, values, standard errors, simulations, pieces)."""
     _, res, start, _, names, chans, u = _setup(start_off, design, duration)
     rng = np.random.default_rng(seed)
@@ -147,7 +147,8 @@ def _one_fit(seed: int, start_off: float, noise: float, counts_per_rev: float,
     rec = DriveRecord(t=res.t, channels=data, u=u)
     t0 = time.perf_counter()
     try:
-        est = estimate_drive(rec, start, estimate=names, pieces=pieces, segment=segment)
+        est = estimate_drive(rec, start, estimate=names, pieces=pieces, segment=segment,
+                             paths=paths)
     except DriveIdError as exc:
         # one failed fit is a result of the benchmark (a miss), not the end of the run
         nan = np.full(len(names), np.nan)
@@ -187,6 +188,9 @@ def main() -> None:
                     help="first horizon of the whole-record fit [s] (estimate_drive's default "
                          "0.5; a fit far above the noise is retried from heads 5 times "
                          "shorter: docs/drive-fit.md)")
+    ap.add_argument("--paths", type=int, default=None,
+                    help="whole-record fits from first horizons segment, /5, /2, the lowest "
+                         "cost kept (default: estimate_drive's, 3 for backlash under PD)")
     args = ap.parse_args()
     pieces = None if args.pieces == "auto" else float(args.pieces)
     if not args.skip_timing:
@@ -203,7 +207,7 @@ def main() -> None:
     accepted = 0
     errors, times, ses, vals, whole = [], [], [], [], []
     work = [(seed, args.start_off, args.noise, args.counts_per_rev, args.design, None, pieces,
-             args.segment)
+             args.segment, args.paths)
             for seed in range(args.first_seed, args.first_seed + args.runs)]
     pool = None
     if args.workers > 1:
@@ -260,7 +264,10 @@ def main() -> None:
                  f"(residual {info['short_horizon_retry']['residual_to_noise']:.3g} -> "
                  f"{info['short_horizon_retry']['retried_residual_to_noise']:.3g} times the "
                  f"noise{'' if info['short_horizon_retry']['kept'] else ', not kept'})"
-                 if info.get("short_horizon_retry") else ""),
+                 if info.get("short_horizon_retry") else "")
+              + (f", best of {len(info['paths']['segments'])} paths: "
+                 f"{info['paths']['segments'][info['paths']['kept']]:g} s heads"
+                 if info.get("paths") else ""),
               flush=True)
     if pool is not None:
         pool.shutdown()

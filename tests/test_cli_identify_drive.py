@@ -267,3 +267,17 @@ def test_a_nan_in_a_drive_channel_names_the_file_s_column(tmp_path):
         assert res.exit_code == 2, res.output
         assert "column 'x1' has 1 non-finite value(s)" in res.output
         assert "first at sample 49" in res.output and "Traceback" not in res.output
+
+
+def test_paths_option_and_its_line(tmp_path):
+    from driveid.commands.identify_drive import _pieces_line
+
+    config, rec = _record(tmp_path)
+    res = CliRunner().invoke(cli, ["identify", "drive", str(config), str(rec), "--estimate",
+                                   "body1.J", "--paths", "4"])
+    assert res.exit_code == 2 and "--paths" in res.output, res.output
+    line = _pieces_line({"done": False, "whole_record_white": True,
+                         "short_horizon_retry": None,
+                         "paths": {"segments": [0.5, 0.1, 0.25], "kept": 1,
+                                   "cost_to_noise": [812.0, 1.01, 1.3]}})
+    assert "from 3 first horizons (0.5 s, 0.1 s, 0.25 s), the lowest cost kept (0.1 s" in line

@@ -67,6 +67,13 @@ def _pieces_line(info: dict) -> str:
         f" (ended {retry['residual_to_noise']:.3g} times the noise, so fitted again from "
         f"{retry['segment']:g} s heads: {retry['retried_residual_to_noise']:.3g} times, "
         + ("kept)" if retry["kept"] else "not kept)"))
+    paths = info.get("paths")
+    if paths:
+        again += (f" from {len(paths['segments'])} first horizons ("
+                  + ", ".join(f"{seg:g} s" for seg in paths["segments"])
+                  + f"), the lowest cost kept ({paths['segments'][paths['kept']]:g} s: "
+                  + ", ".join(f"{c:.4g}" for c in paths["cost_to_noise"])
+                  + " times the noise's squared residual)")
     if not info["done"]:
         return "fit: the whole record" + again + (
             "" if info["whole_record_white"] else
@@ -102,12 +109,17 @@ def _pieces_line(info: dict) -> str:
 @click.option("--input-body", type=int, default=None,
               help="Body (from 1) the input acts on (default: [feedback] body, else 1).")
 @click.option("--segment", type=NonNegativeFloat(), default=0.5, show_default=True,
-              help="Open loop: first fit segments of this length [s] (0: whole records).")
+              help="First fit the first SECONDS of each record, then twice as long, and so "
+                   "on to the whole records [s] (0: whole records only).")
 @click.option("--pieces", default="auto", show_default=True, metavar="SECONDS|auto",
               help="Open loop: re-fit the records cut into pieces of this length [s], each "
                    "with its own initial state, from the whole-record fit, and report that "
                    "fit's error bars; auto: 0.5 s pieces for a drive with backlash or a "
                    "whole-record residual that is not white or above the noise; 0: never.")
+@click.option("--paths", type=click.IntRange(1, 3), default=None,
+              help="Whole-record fits from first horizons of --segment, a fifth and a half "
+                   "of it, the lowest-cost kept [default: 3 for a drive with backlash under "
+                   "[feedback], else 1].")
 @click.option("--white", is_flag=True, help="White noise only (no AR noise model).")
 @click.option("--max-steps", type=PositiveFloat(max=1e18), default=float(DEFAULT_FIT_STEPS),
               show_default=True,
@@ -118,7 +130,7 @@ def _pieces_line(info: dict) -> str:
 @output_options
 @clean_errors
 def drive_command(config, files, estimate, channel, input_column, input_body, segment, pieces,
-                  white, max_steps, model_out, record_opts, output_opts):
+                  paths, white, max_steps, model_out, record_opts, output_opts):
     """Fit the lumped drive of CONFIG (TOML) to motor and load records."""
     from driveid.identify.drive.drive_fit import estimate_drive
     from driveid.io.safe_write import atomic_write_text
@@ -150,8 +162,7 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
                              input_body=None if input_body is None else input_body - 1,
                              torque=run.torque, units=run.units, noise_model=not white,
                              segment=segment or None, max_steps=max_steps,
-                             pieces=piece_length,
-                             progress=advance)
+                             pieces=piece_length, paths=paths, progress=advance)
     if model_out is not None:
         atomic_write_text(model_out, est.diagnostics["model_toml"],
                           overwrite=output_opts.overwrite)

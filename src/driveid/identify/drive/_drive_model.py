@@ -559,7 +559,7 @@ ANNOUNCE_SECONDS = 30.0
 
 
 def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknowns: int,
-                   max_steps: float | None = DEFAULT_FIT_STEPS) -> int:
+                   max_steps: float | None = DEFAULT_FIT_STEPS, passes: int = 1) -> int:
     """Refuse a fit whose simulations would take more RK4 steps than ``max_steps``.
 
     Parameters
@@ -572,6 +572,9 @@ def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknow
         Parameters and initial states estimated [-].
     max_steps : float or None
         Budget of RK4 steps of the whole fit [-]; None: no budget.
+    passes : int
+        Whole fits run (``paths`` of :func:`~driveid.identify.drive.drive_fit.
+        estimate_drive`) [-].
 
     Returns
     -------
@@ -590,7 +593,7 @@ def check_fit_cost(params: DriveParams, records: Sequence[DriveRecord], n_unknow
              for r in records]
     for r, c in zip(records, costs, strict=True):  # each simulation's memory (issue 28)
         check_drive_cost(c, duration=float(r.t[-1] - r.t[0]), max_steps=None)
-    sims = _SIMS_PER_UNKNOWN * (n_unknowns + 1)
+    sims = _SIMS_PER_UNKNOWN * (n_unknowns + 1) * int(passes)
     steps = float(sims * sum(c.n_steps for c in costs))
     seconds = sims * sum(c.seconds for c in costs)
     if max_steps is not None and steps > max_steps:

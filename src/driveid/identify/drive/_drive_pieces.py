@@ -163,6 +163,18 @@ def _noise_ratio(recs, white: dict) -> float:
     return out
 
 
+def _path_cost(recs, white: dict) -> float:
+    """Squared residual over the noise's, pooled over every channel's samples [-]."""
+    total, n = 0.0, 0
+    for r, rec in enumerate(recs):
+        for ch, y in rec.channels.items():
+            key = ch if len(recs) == 1 else f"{ch}@{r + 1}"
+            if key in white:
+                total += y.size * (white[key]["rms"] / _channel_noise(y)) ** 2
+                n += y.size
+    return total / max(n, 1)
+
+
 def _piece_length(pieces: float | None, open_loop: bool, recs, white: dict,
                   drive: DriveParams) -> float:
     """Piece length of the second stage [s], 0 for none (see ``pieces`` of estimate_drive).

@@ -128,6 +128,7 @@ from driveid.identify.drive._drive_model import (
 from driveid.identify.drive._drive_pieces import (
     NOISE_RATIO,
     _noise_ratio,
+    _path_cost,
     _piece_length,
     cut_pieces,
     measured_states,
@@ -141,7 +142,7 @@ from driveid.identify.drive._drive_stage import (
     _states_of,
 )
 from driveid.identify.drive._drive_starts import drive_start_values
-from driveid.sim.drive_types import DriveParams
+from driveid.sim.drive_types import BacklashLink, DriveParams
 
 __all__ = ["DriveRecord", "estimate_drive", "drive_start_values"]
 
@@ -153,6 +154,12 @@ SHORT_HORIZON = 5.0
 #: (two-body open-loop benchmark, runs that ended within the acceptance: 1.1-10.6), not one
 #: far off (three-body open loop, 0.5 s heads, seed 0: 61, J_B -74 %; docs/drive-fit.md).
 PIECES_RETRY_RATIO = 20.0
+#: First horizons of the closed-loop fit's paths, as fractions of ``segment`` [-]: the
+#: whole-record fit run from each, the lowest cost kept (benchmark two-body drive under
+#: delayed PD, 24 seeds: one path covered J_1, c_1 and the delay 0.71-0.75 with z spreads up
+#: to 8 from poor minima; the best of these three 0.88, z spread <= 1.63; five paths no
+#: better: docs/drive-fit.md).
+PATH_HORIZONS = (1.0, 1.0 / SHORT_HORIZON, 0.5)
 #: Restart distance along the pieces' principal axis of uncertainty [standard deviations].
 RIDGE_STEP = 6.0
 #: Median over the pieces of each piece's squared residual over the noise's, above which
@@ -196,6 +203,7 @@ def estimate_drive(
     max_steps: float | None = DEFAULT_FIT_STEPS,
     progress: Callable[[int, int], Any] | None = None,
     pieces: float | None = None,
+    paths: int | None = None,
 ) -> Estimate:
     """Fit the lumped drive's named parameters to measured motor and/or load channels.
 
@@ -258,6 +266,15 @@ def estimate_drive(
         Where the pieces' squared residual stays above 1.15 times the noise's, restarts
         along the fit's principal axis of uncertainty, the lowest cost kept
         (``diagnostics["pieces"]["ridge_restarts"]``).
+    paths : int or None
+        Whole-record fits from different first horizons (``segment`` times
+        :data:`PATH_HORIZONS`: 0.5, 0.1 and 0.25 s by default), the one with the lowest
+        squared residual over the noise kept (``diagnostics["pieces"]["paths"]``) [-], 1
+        to 3. None
+        (default): 3 for a drive with backlash under ``[feedback]`` (its objective has
+        nearby minima that the path from the start decides between), else 1 (then a fit
+        far above the noise is retried from :data:`SHORT_HORIZON` times shorter heads).
+        Each path costs about one fit.
 
     Returns
     -------
@@ -333,6 +350,15 @@ def estimate_drive(
         # issue 28: a negative segment never grew to the record's length (an endless loop)
         raise ParameterError(f"segment must be a length >= 0 in seconds (0 or None: whole "
                              f"records; CLI --segment); got {segment}")
+    if paths is None:  # measured where it helps: backlash under the loop (PATH_HORIZONS)
+        backlash = any(isinstance(link, BacklashLink) for link in start.links)
+        paths = len(PATH_HORIZONS) if backlash and not use_u and segment else 1
+    if not (isinstance(paths, (int, np.integer)) and 1 <= paths <= len(PATH_HORIZONS)):
+        raise ParameterError(f"paths must be a whole number of fits from 1 to "
+                             f"{len(PATH_HORIZONS)} (CLI --paths); got {paths!r}")
+    if paths > 1 and not segment:
+        raise ParameterError("paths > 1 starts the whole-record fit from different first "
+                             "horizons, which needs a segment > 0; give one, or paths=1")
     if pieces and not use_u:
         raise ParameterError("a fit in pieces needs an open-loop drive (the delayed PD loop "
                              "has a history each piece would lose); drop the pieces option")
@@ -350,7 +376,8 @@ def estimate_drive(
                                      else None)
         if guesses:
             base, _, _ = with_values(start, np.zeros(nb), np.zeros(nb), guesses)
-    expected = check_fit_cost(base, recs, len(names) + len(free_states) * len(recs), max_steps)
+    expected = check_fit_cost(base, recs, len(names) + len(free_states) * len(recs), max_steps,
+                              passes=paths)
     tick = None if progress is None else counting(progress, expected)
 
     def whole_fit(first, b):
@@ -372,10 +399,20 @@ def estimate_drive(
         return st, _finish(st, recs, own), b, own
 
     st, fin, fitted_base, own = whole_fit(segment, base)
+    path_info = None
+    if paths > 1:
+        ends = [(segment, (st, fin, fitted_base, own))] + [
+            (segment * f, whole_fit(segment * f, base)) for f in PATH_HORIZONS[1:paths]]
+        costs = [_path_cost(recs, end[1]["white"]) for _, end in ends]
+        kept = int(np.argmin(costs))
+        st, fin, fitted_base, own = ends[kept][1]
+        path_info = {"segments": [float(first) for first, _ in ends],
+                     "cost_to_noise": [float(c) for c in costs], "kept": kept}
     length = _piece_length(pieces, use_u, recs, fin["white"], start)
     short = None
     whole_ratio = _noise_ratio(recs, fin["white"])
-    if segment and whole_ratio > (PIECES_RETRY_RATIO if length else NOISE_RATIO):
+    if paths == 1 and segment and whole_ratio > (PIECES_RETRY_RATIO if length
+                                                 else NOISE_RATIO):
         # a poor whole-record fit, once more with a first horizon SHORT_HORIZON times
         # shorter, the better kept (benchmark two-body drive under delayed PD, released
         # from 1 rad: in 64 of 100 runs the 0.5 s head, which holds every impact, fitted far
@@ -402,6 +439,7 @@ def estimate_drive(
     if not length:
         fin["pieces"] = {"done": False}
     fin["pieces"]["short_horizon_retry"] = short
+    fin["pieces"]["paths"] = path_info
     if not fin["pieces"]["done"] and whole_ratio > NOISE_RATIO:
         # the noise model takes a misfit for coloured noise and whitens it (benchmark
         # two-body drive under delayed PD: 6.7-85 times the noise, white after the AR
