@@ -270,11 +270,10 @@ def estimate_drive(
         Whole-record fits from different first horizons (``segment`` times
         :data:`PATH_HORIZONS`: 0.5, 0.1 and 0.25 s by default), the one with the lowest
         squared residual over the noise kept (``diagnostics["pieces"]["paths"]``) [-], 1
-        to 3. None
-        (default): 3 for a drive with backlash under ``[feedback]`` (its objective has
-        nearby minima that the path from the start decides between), else 1 (then a fit
-        far above the noise is retried from :data:`SHORT_HORIZON` times shorter heads).
-        Each path costs about one fit.
+        to 3. None (default): 3 for a drive with backlash under ``[feedback]`` (its
+        objective has nearby minima that the path from the start decides between), else 1
+        (then a fit far above the noise is retried from :data:`SHORT_HORIZON` times
+        shorter heads). Each path costs about one fit.
 
     Returns
     -------

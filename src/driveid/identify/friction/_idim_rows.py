@@ -40,6 +40,9 @@ class IdimRecordTooShort(RecordError):
             f"by {decimate}; need >= {need} samples; got {got}: record a longer run, "
             "or lower the decimation (CLI: --decimate 1)")
 
+    def __reduce__(self):  # picklable (a fleet worker's error travels to the client)
+        return type(self), (self.dropped, self.decimate, self.need, self.got)
+
 
 def _check_settings(model: str, cutoff_hz: float, decimate: int, edge: int) -> None:
     if model not in MODELS:
