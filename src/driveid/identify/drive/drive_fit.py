@@ -156,9 +156,9 @@ SHORT_HORIZON = 5.0
 PIECES_RETRY_RATIO = 20.0
 #: First horizons of the closed-loop fit's paths, as fractions of ``segment`` [-]: the
 #: whole-record fit run from each, the lowest cost kept (benchmark two-body drive under
-#: delayed PD, 24 seeds: one path covered J_1, c_1 and the delay 0.71-0.75 with z spreads up
-#: to 8 from poor minima; the best of these three 0.88, z spread <= 1.63; five paths no
-#: better: docs/drive-fit.md).
+#: delayed PD, 100 seeds: coverage up on nine of ten parameters, J_1, c_1 and the delay
+#: 0.80 / 0.72 / 0.71 -> 0.83 / 0.78 / 0.79, every sd/se lower; five paths no better than
+#: three on 24 seeds: docs/drive-fit.md).
 PATH_HORIZONS = (1.0, 1.0 / SHORT_HORIZON, 0.5)
 #: Restart distance along the pieces' principal axis of uncertainty [standard deviations].
 RIDGE_STEP = 6.0
