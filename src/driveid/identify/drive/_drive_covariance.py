@@ -155,3 +155,33 @@ def _polish(fit, sol, lower, upper, max_nfev: int = 10):
         pol.success = sol.success or pol.success
         return pol
     return sol
+
+
+#: Correlation of a parameter with an estimated start velocity above which the fit warns
+#: [-]: two-body drive under delayed PD, c_1 against v0_1 -0.97 and -0.965 (seeds 1, 3),
+#: where the error bars were half the scatter and giving v0 = 0 made them honest
+#: (docs/drive-fit.md).
+STATE_TRADE = 0.9
+
+
+def start_velocity_trades(names, all_names, cov) -> list[str]:
+    """Warn of parameters that trade with an estimated start velocity (``.v0`` states)."""
+    cov = np.asarray(cov, float)
+    sd = np.sqrt(np.abs(np.diag(cov)))
+    states = [j for j, n in enumerate(all_names) if ".v0" in n]
+    out = []
+    for n in names:
+        i = all_names.index(n)
+        best = None
+        for j in states:
+            if sd[i] > 0 and sd[j] > 0 and np.isfinite(cov[i, j]):
+                rho = float(cov[i, j] / (sd[i] * sd[j]))
+                if abs(rho) >= STATE_TRADE and (best is None or abs(rho) > abs(best[1])):
+                    best = (all_names[j], rho)
+        if best is not None:
+            out.append(
+                f"{n} trades with the estimated start velocity {best[0]} (correlation "
+                f"{best[1]:+.2f}): such error bars were measured about half the scatter; if "
+                "the record starts at rest, give the start velocities (the TOML's [run] v0 "
+                "= [0.0, ...]), which made them honest and the scatter several times smaller")
+    return out

@@ -111,7 +111,12 @@ import numpy as np
 
 from driveid.errors import ParameterError
 from driveid.identify.core.estimate import Estimate, Parameter
-from driveid.identify.drive._drive_covariance import _channel_noise, _finish, _warn_coloured
+from driveid.identify.drive._drive_covariance import (
+    _channel_noise,
+    _finish,
+    _warn_coloured,
+    start_velocity_trades,
+)
 from driveid.identify.drive._drive_model import (
     DEFAULT_FIT_STEPS,
     DriveRecord,
@@ -455,6 +460,8 @@ def estimate_drive(
                         "reading), which second differences do not see")
     fin["pieces"].update(whole_record_white=all(w["white"] for w in whole_white.values()),
                          whole_record_residual_to_noise=whole_ratio)
+    if v0 is None and not fin["pieces"]["done"]:  # pieces have a state each: not the start
+        warnings.extend(start_velocity_trades(names, fin["all_names"], fin["cov"]))
     return _result(start, base, names, fin["all_names"], fin["theta"], fin["cov"], recs,
                    fin["problems"], fin["states0"], fin["held"], units, input_body, use_u,
                    fin["nfev"], st["noise_info"], fin["cond"], fin["s2"], warnings, tic,
