@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from driveid.errors import FileFormatError, RecordError
+from driveid.errors import FileFormatError
 from driveid.io.registers import decode_sign_magnitude, sign_magnitude_suspect
 from driveid.io.scale_expressions import parse_scale
 from driveid.io.tables import Table, read_table
@@ -462,22 +462,8 @@ def record_from_table(
         if (arr.dtype == np.float64 and arr.base is None and arr.flags.writeable
                 and (owned or id(arr) not in given)):
             arr.setflags(write=False)  # ours alone: the Record may keep it without a copy
-    _refuse_non_finite(arrays, meta, source)
     return record_type(t=arrays["t"], x=arrays["x"], v=arrays.get("v"), u=arrays.get("u"),
                        meta=meta, max_jitter=max_jitter)
-
-
-def _refuse_non_finite(arrays: dict[str, np.ndarray], meta: dict[str, Any], source: str
-                       ) -> None:
-    """Name the file's own column of a NaN or inf (the Record knows only x, v, u)."""
-    used = meta.get("columns_used") or {}
-    for role, arr in arrays.items():
-        if role not in used or np.isfinite(arr).all():
-            continue
-        bad = np.flatnonzero(~np.isfinite(arr))
-        raise RecordError(
-            f"{source}: column {used[role]!r} has {bad.size} non-finite value(s) (NaN or inf), "
-            f"the first at sample {bad[0]}; drop or interpolate those samples before analysis")
 
 
 def convert_table(

@@ -110,9 +110,12 @@ class Record:
                 continue
             bad = np.flatnonzero(~np.isfinite(arr))
             if bad.size:
+                # the file's own column where it was read from one (x1 of a drive record)
+                label = dict(self.meta.get("columns_used") or {}).get(name, name)
                 raise RecordError(
-                    f"column {name!r} has {bad.size} non-finite value(s) (NaN or inf), the first "
-                    f"at sample {bad[0]}; drop or interpolate those samples before analysis"
+                    f"column {label!r} has {bad.size} non-finite value(s) (NaN or inf), the "
+                    f"first at sample {bad[0]}; drop or interpolate those samples before "
+                    "analysis"
                 )
         if n < MIN_SAMPLES:
             raise RecordError(

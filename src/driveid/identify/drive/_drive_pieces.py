@@ -152,27 +152,25 @@ def piece_costs(fit, z: np.ndarray, noise: dict) -> np.ndarray:
                      for prob, res in zip(fit.problems, fit.raw_residuals(z), strict=True)])
 
 
-def _noise_ratio(recs, white: dict) -> float:
-    """Largest ratio of a channel's residual rms to its noise from second differences [-]."""
-    out = 0.0
+def _channel_ratios(recs, white: dict):
+    """Yield each fitted channel's samples and residual rms over its noise [-]."""
     for r, rec in enumerate(recs):
         for ch, y in rec.channels.items():
             key = ch if len(recs) == 1 else f"{ch}@{r + 1}"
             if key in white:
-                out = max(out, white[key]["rms"] / _channel_noise(y))
-    return out
+                yield y.size, white[key]["rms"] / _channel_noise(y)
+
+
+def _noise_ratio(recs, white: dict) -> float:
+    """Largest ratio of a channel's residual rms to its noise from second differences [-]."""
+    return max((ratio for _, ratio in _channel_ratios(recs, white)), default=0.0)
 
 
 def _path_cost(recs, white: dict) -> float:
     """Squared residual over the noise's, pooled over every channel's samples [-]."""
-    total, n = 0.0, 0
-    for r, rec in enumerate(recs):
-        for ch, y in rec.channels.items():
-            key = ch if len(recs) == 1 else f"{ch}@{r + 1}"
-            if key in white:
-                total += y.size * (white[key]["rms"] / _channel_noise(y)) ** 2
-                n += y.size
-    return total / max(n, 1)
+    pairs = list(_channel_ratios(recs, white))
+    n = sum(size for size, _ in pairs)
+    return sum(size * ratio ** 2 for size, ratio in pairs) / max(n, 1)
 
 
 def _piece_length(pieces: float | None, open_loop: bool, recs, white: dict,
