@@ -136,7 +136,8 @@ def _setup(start_off: float, design: str = "testbed", duration: float | None = N
 
 def _one_fit(seed: int, start_off: float, noise: float, counts_per_rev: float,
              design: str = "testbed", duration: float | None = None,
-             pieces: float | None = None, segment: float = 0.5, paths: int | None = None):
+             pieces: float | None = None, segment: float = 0.5, paths: int | None = None,
+             test_rest: bool = True):
     """One noise realisation: (seconds, values, standard errors, simulations, pieces)."""
     _, res, start, _, names, chans, u = _setup(start_off, design, duration)
     rng = np.random.default_rng(seed)
@@ -148,7 +149,7 @@ def _one_fit(seed: int, start_off: float, noise: float, counts_per_rev: float,
     t0 = time.perf_counter()
     try:
         est = estimate_drive(rec, start, estimate=names, pieces=pieces, segment=segment,
-                             paths=paths)
+                             paths=paths, test_rest=test_rest)
     except DriveIdError as exc:
         # one failed fit is a result of the benchmark (a miss), not the end of the run
         nan = np.full(len(names), np.nan)
@@ -191,6 +192,9 @@ def main() -> None:
     ap.add_argument("--paths", type=int, default=None,
                     help="whole-record fits from first horizons segment, /5, /2, the lowest "
                          "cost kept (default: estimate_drive's, 3 for backlash under PD)")
+    ap.add_argument("--no-rest-test", action="store_true",
+                    help="keep the fit with free start velocities (estimate_drive's "
+                         "test_rest=False)")
     args = ap.parse_args()
     pieces = None if args.pieces == "auto" else float(args.pieces)
     if not args.skip_timing:
@@ -207,7 +211,7 @@ def main() -> None:
     accepted = 0
     errors, times, ses, vals, whole = [], [], [], [], []
     work = [(seed, args.start_off, args.noise, args.counts_per_rev, args.design, None, pieces,
-             args.segment, args.paths)
+             args.segment, args.paths, not args.no_rest_test)
             for seed in range(args.first_seed, args.first_seed + args.runs)]
     pool = None
     if args.workers > 1:
@@ -267,7 +271,10 @@ def main() -> None:
                  if info.get("short_horizon_retry") else "")
               + (f", best of {len(info['paths']['segments'])} paths: "
                  f"{info['paths']['segments'][info['paths']['kept']]:g} s heads"
-                 if info.get("paths") else ""),
+                 if info.get("paths") else "")
+              + (f", start at rest {'kept' if info['start_at_rest']['at_rest'] else 'refused'}"
+                 f" (chi2 {info['start_at_rest']['delta_chi2']:+.3g})"
+                 if info.get("start_at_rest") else ""),
               flush=True)
     if pool is not None:
         pool.shutdown()

@@ -281,3 +281,23 @@ def test_paths_option_and_its_line(tmp_path):
                          "paths": {"segments": [0.5, 0.1, 0.25], "kept": 1,
                                    "cost_to_noise": [812.0, 1.01, 1.3]}})
     assert "from 3 first horizons (0.5 s, 0.1 s, 0.25 s), the lowest cost kept (0.1 s" in line
+    rest = _pieces_line({"done": False, "whole_record_white": True, "short_horizon_retry": None,
+                         "start_at_rest": {"delta_chi2": -2.5, "limit": 5.99, "n_fixed": 2,
+                                           "at_rest": True}})
+    assert "start velocities held at 0 changed the squared residual over the noise by -2.5 " \
+           "(motion at the start shows above 5.99): the start at rest was kept" in rest
+
+
+def test_no_rest_test_option(tmp_path):
+    # the record's TOML gives no start velocity: by default the rest is tested, and
+    # --no-rest-test leaves the fitted start velocity as it is
+    text = TOML.replace("v0 = [0.0]\n", "")
+    config, rec = _record(tmp_path, text)
+    for flag, tested in (("--rest-test", True), ("--no-rest-test", False)):
+        res = CliRunner().invoke(cli, ["identify", "drive", str(config), str(rec),
+                                       "--estimate", "body1.J", "--json", flag])
+        assert res.exit_code == 0, res.output
+        data = json.loads(res.output[res.output.index("{"):])
+        rest = data["diagnostics"]["pieces"]["start_at_rest"]
+        assert (rest is not None) == tested, rest
+        assert data["parameters"]["body1.v0"]["fixed"] is (tested and rest["at_rest"])

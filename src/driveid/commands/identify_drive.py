@@ -74,6 +74,15 @@ def _pieces_line(info: dict) -> str:
                   + f"), the lowest cost kept ({paths['segments'][paths['kept']]:g} s: "
                   + ", ".join(f"{c:.4g}" for c in paths["cost_to_noise"])
                   + " times the noise's squared residual)")
+    rest = info.get("start_at_rest")
+    if rest:
+        again += (f"; start velocities held at 0 changed the squared residual over the "
+                  f"noise by {rest['delta_chi2']:+.3g} (motion at the start shows above "
+                  f"{rest['limit']:.3g}"
+                  + (f"; {rest['first_delta_chi2']:+.3g} from the first horizon, so fitted "
+                     "from the others too" if "first_delta_chi2" in rest else "")
+                  + "): the start at " + ("rest was kept" if rest["at_rest"] else
+                                          "rest was refused"))
     if not info["done"]:
         return "fit: the whole record" + again + (
             "" if info["whole_record_white"] else
@@ -120,6 +129,10 @@ def _pieces_line(info: dict) -> str:
               help="Whole-record fits from first horizons of --segment, a fifth and a half "
                    "of it, the lowest-cost kept [default: 3 for a drive with backlash under "
                    "[feedback], else 1].")
+@click.option("--rest-test/--no-rest-test", default=True, show_default=True,
+              help="Where start velocities are estimated, fit them held at 0 too and keep "
+                   "that start at rest unless the record shows motion (a likelihood-ratio "
+                   "test); [run] v0 in the TOML gives them instead.")
 @click.option("--white", is_flag=True, help="White noise only (no AR noise model).")
 @click.option("--max-steps", type=PositiveFloat(max=1e18), default=float(DEFAULT_FIT_STEPS),
               show_default=True,
@@ -130,7 +143,7 @@ def _pieces_line(info: dict) -> str:
 @output_options
 @clean_errors
 def drive_command(config, files, estimate, channel, input_column, input_body, segment, pieces,
-                  paths, white, max_steps, model_out, record_opts, output_opts):
+                  paths, rest_test, white, max_steps, model_out, record_opts, output_opts):
     """Fit the lumped drive of CONFIG (TOML) to motor and load records."""
     from driveid.identify.drive.drive_fit import estimate_drive
     from driveid.io.safe_write import atomic_write_text
@@ -162,7 +175,8 @@ def drive_command(config, files, estimate, channel, input_column, input_body, se
                              input_body=None if input_body is None else input_body - 1,
                              torque=run.torque, units=run.units, noise_model=not white,
                              segment=segment or None, max_steps=max_steps,
-                             pieces=piece_length, paths=paths, progress=advance)
+                             pieces=piece_length, paths=paths, test_rest=rest_test,
+                             progress=advance)
     if model_out is not None:
         atomic_write_text(model_out, est.diagnostics["model_toml"],
                           overwrite=output_opts.overwrite)

@@ -140,6 +140,7 @@ from driveid.identify.drive._drive_pieces import (
     piece_costs,
     piece_states,
 )
+from driveid.identify.drive._drive_rest import REST_RETRY, rest_retry, rest_test
 from driveid.identify.drive._drive_stage import (
     _head,
     _horizons,
@@ -209,6 +210,7 @@ def estimate_drive(
     progress: Callable[[int, int], Any] | None = None,
     pieces: float | None = None,
     paths: int | None = None,
+    test_rest: bool = True,
 ) -> Estimate:
     """Fit the lumped drive's named parameters to measured motor and/or load channels.
 
@@ -279,6 +281,13 @@ def estimate_drive(
         objective has nearby minima that the path from the start decides between), else 1
         (then a fit far above the noise is retried from :data:`SHORT_HORIZON` times
         shorter heads). Each path costs about one fit.
+    test_rest : bool
+        Where start velocities are estimated and no pieces follow, fit once more with all
+        of them held at 0 (growing horizons from the first fit's values) and keep that
+        start at rest unless freeing them lowers the squared residual over the noise by
+        more than the 95 % point of χ²(bodies × records), one test over every record
+        (``diagnostics["pieces"]["start_at_rest"]``; see
+        :mod:`driveid.identify.drive._drive_rest`). Costs about one more path.
 
     Returns
     -------
@@ -380,29 +389,33 @@ def estimate_drive(
                                      else None)
         if guesses:
             base, _, _ = with_values(start, np.zeros(nb), np.zeros(nb), guesses)
+    rest_states = [n for n in free_states if n.endswith(".x0")]
+    may_rest = test_rest and len(rest_states) < len(free_states)
     expected = check_fit_cost(base, recs, len(names) + len(free_states) * len(recs), max_steps,
-                              passes=paths)
+                              passes=paths + may_rest)
     tick = None if progress is None else counting(progress, expected)
 
-    def whole_fit(first, b):
+    def whole_fit(first, b, at_rest=False):
         own: list[str] = []
         starts = None
+        states, v0_ = (rest_states, np.zeros(nb)) if at_rest else (free_states, v0)
         for fraction in _horizons(recs, first):
             # growing horizon: the early part of a record holds little accumulated phase
             # error, so its objective has few local minima; each stage starts the next
             heads = [_head(rec, fraction) for rec in recs]
-            st = _stage(heads, b, start, names, free_states, x0, v0, input_body, use_u,
+            st = _stage(heads, b, start, names, states, x0, v0_, input_body, use_u,
                         torque, parallel, max_nfev, False, starts, hold=True,
                         progress=tick)
             theta = st["sol"].x * st["scale_all"]
             shared = dict(zip(names, theta[:len(names)], strict=True))
             b, _, _ = with_values(b, np.zeros(nb), np.zeros(nb), shared)
             starts = _states_of(st, theta, len(names))
-        st = _stage(recs, b, start, names, free_states, x0, v0, input_body, use_u, torque,
+        st = _stage(recs, b, start, names, states, x0, v0_, input_body, use_u, torque,
                     parallel, max_nfev, noise_model, starts, progress=tick)
         return st, _finish(st, recs, own), b, own
 
     st, fin, fitted_base, own = whole_fit(segment, base)
+    first_kept = segment
     path_info = None
     if paths > 1:
         ends = [(segment, (st, fin, fitted_base, own))] + [
@@ -410,6 +423,7 @@ def estimate_drive(
         costs = [_path_cost(recs, end[1]["white"]) for _, end in ends]
         kept = int(np.argmin(costs))
         st, fin, fitted_base, own = ends[kept][1]
+        first_kept = ends[kept][0]
         path_info = {"segments": [float(first) for first, _ in ends],
                      "cost_to_noise": [float(c) for c in costs], "kept": kept}
     length = _piece_length(pieces, use_u, recs, fin["white"], start)
@@ -429,8 +443,26 @@ def estimate_drive(
                  "retried_residual_to_noise": after, "kept": bool(after < whole_ratio)}
         if after < whole_ratio:
             st, fin, fitted_base, own = retry
+            first_kept = segment / SHORT_HORIZON
             whole_ratio = after
             length = _piece_length(pieces, use_u, recs, fin["white"], start)
+    rest = None
+    if may_rest and not length:
+        # the start velocities trade with the loop's damping and delay, and the fit with
+        # them free often stops short along that trade (_drive_rest); from the first fit's
+        # end the whole record at once went astray (benchmark: 14 of 16 ended 24-1e5
+        # chi-square units above it), so along growing horizons like the kept path's
+        resting = whole_fit(first_kept, fitted_base, at_rest=True)
+        rest = rest_test(recs, fin["white"], resting[1]["white"], nb * len(recs))
+        if not rest["at_rest"] and segment and rest["delta_chi2"] < REST_RETRY * rest["limit"]:
+            resting, rest = rest_retry(
+                resting, rest, recs, fin["white"], first_kept,
+                [segment * f for f in PATH_HORIZONS
+                 if abs(segment * f - first_kept) > 1e-9 * segment],
+                lambda first: whole_fit(first, fitted_base, True))
+        if rest["at_rest"]:
+            st, fin, fitted_base, own = resting
+            whole_ratio = _noise_ratio(recs, fin["white"])
     base = fitted_base
     warnings.extend(own)
     whole_white = fin["white"]
@@ -444,6 +476,7 @@ def estimate_drive(
         fin["pieces"] = {"done": False}
     fin["pieces"]["short_horizon_retry"] = short
     fin["pieces"]["paths"] = path_info
+    fin["pieces"]["start_at_rest"] = rest
     if not fin["pieces"]["done"] and whole_ratio > NOISE_RATIO:
         # the noise model takes a misfit for coloured noise and whitens it (benchmark
         # two-body drive under delayed PD: 6.7-85 times the noise, white after the AR
@@ -460,12 +493,14 @@ def estimate_drive(
                         "reading), which second differences do not see")
     fin["pieces"].update(whole_record_white=all(w["white"] for w in whole_white.values()),
                          whole_record_residual_to_noise=whole_ratio)
-    if v0 is None and not fin["pieces"]["done"]:  # pieces have a state each: not the start
+    at_rest = bool(rest and rest["at_rest"])
+    if v0 is None and not at_rest and not fin["pieces"]["done"]:
+        # pieces have a state each: not the start
         warnings.extend(start_velocity_trades(names, fin["all_names"], fin["cov"]))
     return _result(start, base, names, fin["all_names"], fin["theta"], fin["cov"], recs,
                    fin["problems"], fin["states0"], fin["held"], units, input_body, use_u,
                    fin["nfev"], st["noise_info"], fin["cond"], fin["s2"], warnings, tic,
-                   x0 is not None, v0 is not None, fin["cov_method"], fin["white"],
+                   x0 is not None, v0 is not None or at_rest, fin["cov_method"], fin["white"],
                    fin["pieces"])
 
 
