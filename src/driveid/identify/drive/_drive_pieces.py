@@ -166,11 +166,15 @@ def _noise_ratio(recs, white: dict) -> float:
     return max((ratio for _, ratio in _channel_ratios(recs, white)), default=0.0)
 
 
+def squared_residual(recs, white: dict) -> float:
+    """Sum over every fitted channel's samples of (residual / noise)² [-]."""
+    return float(sum(size * ratio ** 2 for size, ratio in _channel_ratios(recs, white)))
+
+
 def _path_cost(recs, white: dict) -> float:
     """Squared residual over the noise's, pooled over every channel's samples [-]."""
-    pairs = list(_channel_ratios(recs, white))
-    n = sum(size for size, _ in pairs)
-    return sum(size * ratio ** 2 for size, ratio in pairs) / max(n, 1)
+    n = sum(size for size, _ in _channel_ratios(recs, white))
+    return squared_residual(recs, white) / max(n, 1)
 
 
 def _piece_length(pieces: float | None, open_loop: bool, recs, white: dict,

@@ -17,33 +17,28 @@ differences, as the paths are compared): the start at rest is kept when freeing 
 velocities lowers that sum by no more than the 95 % point of χ²(k) (a likelihood-ratio
 test of the nested model); a narrow refusal fits the rest again from the other first
 horizons (:func:`rest_retry`). A record that starts moving faster than the noise can hide
-keeps its fitted velocities. On 100 benchmark records, all started at rest, the rest was
-kept on 89, and J_1, c_1 and the delay covered 0.83-0.85 (0.78-0.83 before): better, not
-yet calibrated (docs/drive-fit.md). Between the two (a start velocity of one or two of its
+keeps its fitted velocities. Between the two (a start velocity of one or two of its
 standard errors) the test keeps the rest, and the parameters that trade with the velocity
 are then biased by up to about that many of their free-fit error bars: said in
 docs/drive-fit.md; give the TOML's ``[run] v0`` when the start is known, or switch the test
-off (``test_rest=False``, CLI ``--no-rest-test``).
+off (``test_rest=False``, CLI ``--no-rest-test``). On 100 benchmark records, all started
+at rest, the rest was kept on 89, and J_1, c_1 and the delay covered 0.83-0.85 (0.78-0.83
+before): better, not yet calibrated (docs/drive-fit.md).
 """
 
 from __future__ import annotations
 
 from scipy.stats import chi2
 
-from driveid.identify.drive._drive_pieces import _channel_ratios
+from driveid.identify.drive._drive_pieces import squared_residual
 
 __all__: list[str] = []
 
 #: Level of the likelihood-ratio test above which a fitted start velocity is kept [-].
 REST_LEVEL = 0.95
 #: A refusal below this many times the test's limit fits the rest again from the other
-#: first horizons (``drive_fit._rest_retry``) [-].
+#: first horizons (:func:`rest_retry`) [-].
 REST_RETRY = 50.0
-
-
-def squared_residual(recs, white: dict) -> float:
-    """Sum over every fitted channel's samples of (residual / noise)² [-]."""
-    return float(sum(size * ratio ** 2 for size, ratio in _channel_ratios(recs, white)))
 
 
 def rest_test(recs, moving_white: dict, rest_white: dict, n_fixed: int) -> dict:
